@@ -1,0 +1,93 @@
+//! The one public error type, split by cause.
+
+use std::fmt;
+
+/// Every fallible vtz operation returns this error. The variant says *why* it failed so
+/// callers (and the CLI's exit code) can react: bad bytes, an unsupported variant, a bad
+/// argument, a limit hit, or the operating system.
+#[derive(Debug)]
+pub enum Error {
+    /// Reading or writing a file failed at the operating-system level.
+    Io {
+        /// What was being done, e.g. the path.
+        context: String,
+        source: std::io::Error,
+    },
+    /// The input bytes are not valid: truncated, corrupted, checksum mismatch, out-of-range
+    /// metadata. `what` names the place (file, section, field).
+    Corrupt { what: String },
+    /// The input is well-formed but uses a variant vtz does not implement (a 3-band TIFF,
+    /// an unknown required section, a newer format version).
+    Unsupported { what: String },
+    /// The caller asked for something impossible or inconsistent (a negative error bound,
+    /// a window outside the raster, an unknown format name).
+    InvalidArgument { what: String },
+    /// The input would need more memory or work than the configured limits allow.
+    LimitExceeded { what: String },
+}
+
+/// Short alias used throughout the crate.
+pub type Result<T> = std::result::Result<T, Error>;
+
+impl Error {
+    pub fn corrupt(what: impl Into<String>) -> Self {
+        Error::Corrupt { what: what.into() }
+    }
+    pub fn unsupported(what: impl Into<String>) -> Self {
+        Error::Unsupported { what: what.into() }
+    }
+    pub fn invalid(what: impl Into<String>) -> Self {
+        Error::InvalidArgument { what: what.into() }
+    }
+    pub fn limit(what: impl Into<String>) -> Self {
+        Error::LimitExceeded { what: what.into() }
+    }
+    pub fn io(context: impl Into<String>, source: std::io::Error) -> Self {
+        Error::Io {
+            context: context.into(),
+            source,
+        }
+    }
+    /// Prefix the description with where the error happened (e.g. a file name).
+    pub fn context(self, ctx: impl fmt::Display) -> Self {
+        match self {
+            Error::Io { context, source } => Error::Io {
+                context: format!("{ctx}: {context}"),
+                source,
+            },
+            Error::Corrupt { what } => Error::Corrupt {
+                what: format!("{ctx}: {what}"),
+            },
+            Error::Unsupported { what } => Error::Unsupported {
+                what: format!("{ctx}: {what}"),
+            },
+            Error::InvalidArgument { what } => Error::InvalidArgument {
+                what: format!("{ctx}: {what}"),
+            },
+            Error::LimitExceeded { what } => Error::LimitExceeded {
+                what: format!("{ctx}: {what}"),
+            },
+        }
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::Io { context, source } => write!(f, "I/O error: {context}: {source}"),
+            Error::Corrupt { what } => write!(f, "corrupt input: {what}"),
+            Error::Unsupported { what } => write!(f, "unsupported: {what}"),
+            Error::InvalidArgument { what } => write!(f, "invalid argument: {what}"),
+            Error::LimitExceeded { what } => write!(f, "limit exceeded: {what}"),
+        }
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::Io { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
