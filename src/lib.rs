@@ -1,30 +1,216 @@
 //! vtz: a compression codec and file format for elevation data with a hard error bound.
 //!
-//! Pipeline: raster I/O ([`raster`]) → representation sections (e.g. [`grid`]) → entropy
-//! coding ([`entropy`]) → the container ([`container`]), and back.
+//! Pipeline: raster I/O ([`raster`]) → a representation section ([`grid`]) → entropy coding
+//! ([`entropy`]) → the container ([`container`]); decoding runs the same way back.
+//!
+//! ```no_run
+//! use std::path::Path;
+//! let dem = vtz::raster::read_path(Path::new("corpus/scape_crater.png"), &Default::default())?;
+//! let bytes = vtz::encode(&dem, &vtz::EncodeOptions { max_error: Some(vtz::ErrorBound::Abs(1.0)), ..Default::default() })?;
+//! let back = vtz::decode(&bytes)?;
+//! assert!(vtz::metrics::compare(&dem, &back)?.max_error <= 1.0);
+//! # Ok::<(), vtz::Error>(())
+//! ```
 #![forbid(unsafe_code)]
 
+pub mod container;
+pub mod entropy;
 pub mod error;
 pub mod fsio;
+pub mod grid;
+pub mod metrics;
 pub mod raster;
 
+pub use container::Limits;
 pub use error::{Error, Result};
 pub use raster::{Format, Georef, Raster, RasterType, SampleType};
 
+use container::{Header, Section, SectionKind, SF_REQUIRED};
+
+/// A max-error bound as the user gives it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ErrorBound {
+    /// In data units (e.g. metres).
+    Abs(f64),
+    /// In percent of the value range (max − min over valid samples).
+    PercentOfRange(f64),
+}
+
+impl ErrorBound {
+    /// Parse `"2.5"` (data units) or `"1%"` (of the value range).
+    pub fn parse(s: &str) -> Result<ErrorBound> {
+        let t = s.trim();
+        let (num, pct) = match t.strip_suffix('%') {
+            Some(n) => (n.trim(), true),
+            None => (t, false),
+        };
+        let v: f64 = num
+            .parse()
+            .map_err(|_| Error::invalid(format!("'{s}' is not an error bound (e.g. 2.5 or 1%)")))?;
+        if !(v >= 0.0 && v.is_finite()) {
+            return Err(Error::invalid(format!("error bound '{s}' must be ≥ 0")));
+        }
+        Ok(if pct {
+            ErrorBound::PercentOfRange(v)
+        } else {
+            ErrorBound::Abs(v)
+        })
+    }
+
+    /// The bound in data units for a raster with this value range.
+    pub fn absolute(self, range: Option<(f64, f64)>) -> f64 {
+        match self {
+            ErrorBound::Abs(v) => v,
+            ErrorBound::PercentOfRange(p) => range.map_or(0.0, |(lo, hi)| (hi - lo) * p / 100.0),
+        }
+    }
+}
+
 /// Options for [`encode`].
 #[derive(Clone, Debug, Default)]
-pub struct EncodeOptions {}
+pub struct EncodeOptions {
+    /// Guarantee every valid sample decodes within this bound; `None` = lossless.
+    pub max_error: Option<ErrorBound>,
+    /// Free-form JSON stored in a metadata section (e.g. provenance).
+    pub metadata: Option<String>,
+}
 
 /// Options for [`decode_with`].
 #[derive(Clone, Debug, Default)]
-pub struct DecodeOptions {}
-
-/// Encode a raster into `.vtz` bytes.
-pub fn encode(_raster: &Raster, _opts: &EncodeOptions) -> Result<Vec<u8>> {
-    Err(Error::unsupported("encode is not written yet"))
+pub struct DecodeOptions {
+    pub limits: Limits,
+    /// Decode this section (index in the directory) instead of the primary one.
+    pub section: Option<usize>,
 }
 
-/// Decode `.vtz` bytes into a raster.
-pub fn decode_with(_bytes: &[u8], _opts: &DecodeOptions) -> Result<Raster> {
-    Err(Error::unsupported("decode is not written yet"))
+/// Build the file header describing `r`.
+fn header_for(r: &Raster) -> Result<Header> {
+    let w = u32::try_from(r.width).map_err(|_| Error::limit("raster wider than 2^32"))?;
+    let h = u32::try_from(r.height).map_err(|_| Error::limit("raster taller than 2^32"))?;
+    if w > i32::MAX as u32 || h > i32::MAX as u32 {
+        return Err(Error::limit("raster dimension over 2^31 - 1"));
+    }
+    Ok(Header {
+        width: w,
+        height: h,
+        sample_type: r.sample_type,
+        primary: 0,
+        mapping: r.mapping,
+        nodata: r.nodata,
+        range: r.valid_range(),
+        georef: r.georef.clone(),
+    })
+}
+
+/// What [`encode_report`] produced besides the bytes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EncodeReport {
+    /// Max error guaranteed on every valid sample (0 = lossless), in data units.
+    pub max_error: f64,
+}
+
+/// Encode a raster into `.vtz` bytes.
+pub fn encode(raster: &Raster, opts: &EncodeOptions) -> Result<Vec<u8>> {
+    encode_report(raster, opts).map(|(b, _)| b)
+}
+
+/// Encode a raster into `.vtz` bytes and report the bound achieved.
+pub fn encode_report(raster: &Raster, opts: &EncodeOptions) -> Result<(Vec<u8>, EncodeReport)> {
+    raster.validate()?;
+    let mut header = header_for(raster)?;
+    let e = opts
+        .max_error
+        .map_or(0.0, |b| b.absolute(header.range));
+    let (grid, bound) = grid::encode(raster, &grid::GridParams { max_error: e })?;
+    let mut sections = Vec::new();
+    if let Some(m) = &raster.mask {
+        if m.iter().any(|&b| !b) {
+            sections.push(Section {
+                kind: SectionKind::Mask,
+                flags: SF_REQUIRED,
+                payload: container::mask::encode(m),
+            });
+        }
+    }
+    header.primary = sections.len() as u16;
+    sections.push(Section {
+        kind: SectionKind::Grid,
+        flags: SF_REQUIRED,
+        payload: grid,
+    });
+    if let Some(meta) = &opts.metadata {
+        serde_json::from_str::<serde_json::Value>(meta)
+            .map_err(|e| Error::invalid(format!("metadata is not JSON: {e}")))?;
+        sections.push(Section {
+            kind: SectionKind::Metadata,
+            flags: 0,
+            payload: meta.as_bytes().to_vec(),
+        });
+    }
+    Ok((
+        container::write(&header, &sections),
+        EncodeReport { max_error: bound },
+    ))
+}
+
+/// Decode `.vtz` bytes into a raster (the primary section).
+pub fn decode(bytes: &[u8]) -> Result<Raster> {
+    decode_with(bytes, &DecodeOptions::default())
+}
+
+/// Decode `.vtz` bytes into a raster with options.
+pub fn decode_with(bytes: &[u8], opts: &DecodeOptions) -> Result<Raster> {
+    let mut rd = container::ContainerReader::new(std::io::Cursor::new(bytes), opts.limits)?;
+    let header = rd.header().clone();
+    let n = header.samples() as usize;
+    let mask = match rd.find(SectionKind::Mask) {
+        Some(i) => Some(container::mask::decode(&rd.read_section(i)?, n)?),
+        None => None,
+    };
+    let idx = opts.section.unwrap_or(header.primary as usize);
+    let entry = rd
+        .entries()
+        .get(idx)
+        .ok_or_else(|| Error::invalid(format!("the file has no section {idx}")))?
+        .clone();
+    let payload = rd.read_section(idx)?;
+    let data = match entry.kind {
+        SectionKind::Grid => grid::decode(&payload, &header, mask.as_deref())?,
+        k => {
+            return Err(Error::unsupported(format!(
+                "decoding a {} section is not implemented by this version",
+                k.name()
+            )));
+        }
+    };
+    let mut r = Raster {
+        width: header.width as usize,
+        height: header.height as usize,
+        data,
+        mask,
+        nodata: header.nodata,
+        sample_type: header.sample_type,
+        mapping: header.mapping,
+        georef: header.georef.clone(),
+    };
+    r.normalize_mask();
+    Ok(r)
+}
+
+/// A file's header and section list, for `vtz info`.
+#[derive(Clone, Debug)]
+pub struct FileInfo {
+    pub file_bytes: u64,
+    pub header: Header,
+    pub sections: Vec<container::SectionEntry>,
+}
+
+/// Read a file's header and directory without decoding samples.
+pub fn info(bytes: &[u8], limits: Limits) -> Result<FileInfo> {
+    let rd = container::ContainerReader::new(std::io::Cursor::new(bytes), limits)?;
+    Ok(FileInfo {
+        file_bytes: bytes.len() as u64,
+        header: rd.header().clone(),
+        sections: rd.entries().to_vec(),
+    })
 }

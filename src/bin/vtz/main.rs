@@ -1,1 +1,59 @@
-fn main() {}
+//! The `vtz` command line: a thin layer over the library, one file per subcommand.
+#![forbid(unsafe_code)]
+
+mod common;
+mod compare;
+mod convert;
+mod decode;
+mod encode;
+mod info;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Compress elevation rasters (DEMs, height fields) with a hard error bound.
+#[derive(Parser)]
+#[command(name = "vtz", version, about, max_term_width = 100)]
+struct Cli {
+    /// No progress bars or summary lines (errors are still printed).
+    #[arg(short, long, global = true)]
+    quiet: bool,
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Compress a raster into a .vtz file.
+    Encode(encode::Args),
+    /// Decompress a .vtz file into a raster file.
+    Decode(decode::Args),
+    /// Show a .vtz file's header and sections.
+    Info(info::Args),
+    /// Compare two rasters (either may be a .vtz): RMSE, max error, PSNR, bits per sample.
+    Compare(compare::Args),
+    /// Convert a raster between formats.
+    Convert(convert::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let ui = common::Ui { quiet: cli.quiet };
+    let res = match cli.cmd {
+        Cmd::Encode(a) => encode::run(a, &ui),
+        Cmd::Decode(a) => decode::run(a, &ui),
+        Cmd::Info(a) => info::run(a, &ui),
+        Cmd::Compare(a) => compare::run(a, &ui),
+        Cmd::Convert(a) => convert::run(a, &ui),
+    };
+    match res {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("vtz: {e}");
+            match e {
+                vtz::Error::InvalidArgument { .. } => ExitCode::from(2),
+                _ => ExitCode::from(1),
+            }
+        }
+    }
+}

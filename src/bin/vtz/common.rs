@@ -1,0 +1,131 @@
+//! Shared CLI plumbing: reading inputs, raster options, progress display.
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::path::{Path, PathBuf};
+use std::sync::mpsc;
+use std::time::Duration;
+use vtz::raster::{self, png::PngMapping, Format, ReadOptions, WriteOptions};
+use vtz::{Error, Raster, Result};
+
+/// Global output settings.
+pub struct Ui {
+    pub quiet: bool,
+}
+
+impl Ui {
+    /// Print a summary line to stderr unless --quiet.
+    pub fn say(&self, msg: impl std::fmt::Display) {
+        if !self.quiet {
+            eprintln!("{msg}");
+        }
+    }
+
+    /// Run `f` with a spinner that appears only when the work takes over a second and
+    /// stderr is a terminal.
+    pub fn busy<T>(&self, msg: &str, f: impl FnOnce() -> T) -> T {
+        if self.quiet {
+            return f();
+        }
+        let pb = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
+        pb.set_style(
+            ProgressStyle::with_template("{spinner} {msg} {elapsed}")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        );
+        pb.set_message(msg.to_string());
+        let (tx, rx) = mpsc::channel::<()>();
+        let pb2 = pb.clone();
+        let t = std::thread::spawn(move || {
+            if rx.recv_timeout(Duration::from_secs(1)).is_err() {
+                pb2.set_draw_target(ProgressDrawTarget::stderr());
+                pb2.enable_steady_tick(Duration::from_millis(120));
+                let _ = rx.recv();
+            }
+        });
+        let out = f();
+        let _ = tx.send(());
+        let _ = t.join();
+        pb.finish_and_clear();
+        out
+    }
+}
+
+/// Options shared by every command that reads or writes rasters.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct RasterOpts {
+    /// 16-bit PNG value mapping: value = offset + scale * code.
+    #[arg(long, value_name = "S")]
+    pub png_scale: Option<f64>,
+    /// 16-bit PNG value mapping offset (e.g. -32768 for SRTM PNGs).
+    #[arg(long, value_name = "O")]
+    pub png_offset: Option<f64>,
+    /// 16-bit PNG code that marks nodata (e.g. 0).
+    #[arg(long, value_name = "CODE")]
+    pub png_nodata: Option<u16>,
+}
+
+impl RasterOpts {
+    pub fn mapping(&self) -> Option<PngMapping> {
+        if self.png_scale.is_none() && self.png_offset.is_none() && self.png_nodata.is_none() {
+            return None;
+        }
+        Some(PngMapping {
+            scale: self.png_scale.unwrap_or(1.0),
+            offset: self.png_offset.unwrap_or(0.0),
+            nodata_code: self.png_nodata,
+        })
+    }
+}
+
+pub fn parse_format(s: Option<&str>) -> Result<Option<Format>> {
+    s.map(Format::from_name).transpose()
+}
+
+/// Read any raster (a `.vtz` is decoded).
+pub fn read_raster(path: &Path, format: Option<Format>, opts: &RasterOpts) -> Result<Raster> {
+    let ro = ReadOptions {
+        format,
+        png_mapping: opts.mapping(),
+        ..Default::default()
+    };
+    raster::read_path(path, &ro)
+}
+
+pub fn write_options(format: Option<Format>, force: bool, opts: &RasterOpts) -> WriteOptions {
+    WriteOptions {
+        format,
+        force,
+        png_mapping: opts.mapping(),
+    }
+}
+
+pub fn read_file(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|e| Error::io(path.display().to_string(), e))
+}
+
+/// Refuse to write an output onto the input.
+pub fn check_distinct(input: &Path, output: &Path) -> Result<()> {
+    let same = match (input.canonicalize(), output.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if same {
+        return Err(Error::invalid(format!(
+            "output {} is the input file",
+            output.display()
+        )));
+    }
+    Ok(())
+}
+
+/// `IN.ext` → `IN.vtz`.
+pub fn default_output(input: &Path, ext: &str) -> PathBuf {
+    input.with_extension(ext)
+}
+
+pub fn is_vtz(path: &Path, format: Option<Format>) -> bool {
+    format == Some(Format::Vtz)
+        || (format.is_none()
+            && path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("vtz")))
+}

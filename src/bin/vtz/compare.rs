@@ -1,0 +1,54 @@
+//! `vtz compare`: error statistics between a reference raster and another (either may be .vtz).
+
+use crate::common::{self, RasterOpts, Ui};
+use std::path::{Path, PathBuf};
+use vtz::Result;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Reference raster (or .vtz).
+    pub a: PathBuf,
+    /// Raster to compare with it (or .vtz).
+    pub b: PathBuf,
+    /// Print JSON on stdout instead of text.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub raster: RasterOpts,
+}
+
+pub fn run(a: Args, ui: &Ui) -> Result<()> {
+    let ra = ui.busy("reading", || common::read_raster(&a.a, None, &a.raster))?;
+    let rb = ui.busy("reading", || common::read_raster(&a.b, None, &a.raster))?;
+    let c = vtz::metrics::compare(&ra, &rb)?;
+    let vtz_size = |p: &Path| -> Option<u64> {
+        common::is_vtz(p, None)
+            .then(|| std::fs::metadata(p).ok().map(|m| m.len()))
+            .flatten()
+    };
+    let bytes = vtz_size(&a.b).or_else(|| vtz_size(&a.a));
+    let bps = bytes.map(|n| vtz::metrics::bits_per_sample(n, ra.len()));
+    if a.json {
+        let mut j = serde_json::to_value(&c).unwrap_or_default();
+        j["bits_per_sample"] = serde_json::json!(bps);
+        j["vtz_bytes"] = serde_json::json!(bytes);
+        println!("{j}");
+        return Ok(());
+    }
+    println!("size        {} x {} ({} valid samples)", c.width, c.height, c.valid);
+    println!("max error   {} ({:.4} % of range {})", c.max_error, c.max_error_pct, c.range);
+    println!("rmse        {} ({:.4} % of range)", c.rmse, c.rmse_pct);
+    println!("mean |err|  {}", c.mean_abs_error);
+    println!("psnr        {:.2} dB", c.psnr_db);
+    if let Some(b) = bps {
+        println!("bits/sample {b:.4} ({} bytes)", bytes.unwrap_or(0));
+    }
+    if c.lost > 0 || c.invented > 0 {
+        println!(
+            "nodata      {} valid samples lost, {} nodata samples filled",
+            c.lost, c.invented
+        );
+    }
+    println!("identical   {}", if c.identical { "yes" } else { "no" });
+    Ok(())
+}

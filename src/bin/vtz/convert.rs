@@ -1,0 +1,42 @@
+//! `vtz convert`: read a raster in one format and write it in another.
+
+use crate::common::{self, RasterOpts, Ui};
+use std::path::PathBuf;
+use vtz::Result;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Input raster.
+    pub input: PathBuf,
+    /// Output raster; the format follows the extension.
+    pub output: PathBuf,
+    /// Input format, when the extension does not tell.
+    #[arg(long, value_name = "FMT")]
+    pub from: Option<String>,
+    /// Output format, when the extension does not tell.
+    #[arg(long, value_name = "FMT")]
+    pub to: Option<String>,
+    /// Replace an existing output file.
+    #[arg(short, long)]
+    pub force: bool,
+    #[command(flatten)]
+    pub raster: RasterOpts,
+}
+
+pub fn run(a: Args, ui: &Ui) -> Result<()> {
+    let from = common::parse_format(a.from.as_deref())?;
+    let to = common::parse_format(a.to.as_deref())?;
+    common::check_distinct(&a.input, &a.output)?;
+    let raster = ui.busy("reading", || common::read_raster(&a.input, from, &a.raster))?;
+    let wo = common::write_options(to, a.force, &a.raster);
+    ui.busy("writing", || vtz::raster::write_path(&raster, &a.output, &wo))?;
+    ui.say(format!(
+        "{} → {}: {}x{} {}",
+        a.input.display(),
+        a.output.display(),
+        raster.width,
+        raster.height,
+        raster.sample_type.name()
+    ));
+    Ok(())
+}

@@ -1,0 +1,48 @@
+//! `vtz decode`: decompress a .vtz file into a raster file.
+
+use crate::common::{self, RasterOpts, Ui};
+use std::path::PathBuf;
+use vtz::{DecodeOptions, Result};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Input .vtz file.
+    pub input: PathBuf,
+    /// Output raster; the format follows the extension (.tif, .png, .exr, .hgt, .asc, .f32).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Output format, when the extension does not tell.
+    #[arg(long, value_name = "FMT")]
+    pub format: Option<String>,
+    /// Decode this section (index from `vtz info`) instead of the primary one.
+    #[arg(long, value_name = "N")]
+    pub section: Option<usize>,
+    /// Replace an existing output file.
+    #[arg(short, long)]
+    pub force: bool,
+    #[command(flatten)]
+    pub raster: RasterOpts,
+}
+
+pub fn run(a: Args, ui: &Ui) -> Result<()> {
+    let format = common::parse_format(a.format.as_deref())?;
+    common::check_distinct(&a.input, &a.output)?;
+    let bytes = common::read_file(&a.input)?;
+    let opts = DecodeOptions {
+        section: a.section,
+        ..Default::default()
+    };
+    let raster = ui
+        .busy("decoding", || vtz::decode_with(&bytes, &opts))
+        .map_err(|e| e.context(a.input.display()))?;
+    let wo = common::write_options(format, a.force, &a.raster);
+    ui.busy("writing", || vtz::raster::write_path(&raster, &a.output, &wo))?;
+    ui.say(format!(
+        "{}: {}x{} {}",
+        a.output.display(),
+        raster.width,
+        raster.height,
+        raster.sample_type.name()
+    ));
+    Ok(())
+}

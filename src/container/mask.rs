@@ -1,0 +1,103 @@
+//! The validity-mask section: run lengths of valid/invalid samples, varint + DEFLATE coded.
+
+use super::bytes::{ByteReader, PutLe};
+use crate::entropy::{self, varint};
+use crate::error::Result;
+
+/// Mask coding 0: alternating run lengths (valid first) as LEB128 varints, raw DEFLATE.
+const CODING_RUNS_DEFLATE: u8 = 0;
+
+/// Encode a mask (`true` = valid) into a mask-section payload.
+pub fn encode(mask: &[bool]) -> Vec<u8> {
+    let mut runs = Vec::new();
+    let mut current = true;
+    let mut run: u64 = 0;
+    let mut invalid: u64 = 0;
+    for &b in mask {
+        if !b {
+            invalid += 1;
+        }
+        if b == current {
+            run += 1;
+        } else {
+            varint::put_u64(&mut runs, run);
+            current = b;
+            run = 1;
+        }
+    }
+    varint::put_u64(&mut runs, run);
+    let mut out = Vec::new();
+    out.put_u8(CODING_RUNS_DEFLATE);
+    out.put_u64(invalid);
+    out.extend_from_slice(&entropy::deflate(&runs));
+    out
+}
+
+/// Decode a mask-section payload for a raster of `n` samples.
+pub fn decode(payload: &[u8], n: usize) -> Result<Vec<bool>> {
+    let mut r = ByteReader::new(payload, "mask section");
+    let coding = r.u8("coding")?;
+    if coding != CODING_RUNS_DEFLATE {
+        return Err(r.corrupt(format!("mask coding {coding} is not defined")));
+    }
+    let invalid = r.u64("invalid count")?;
+    if invalid > n as u64 {
+        return Err(r.corrupt(format!("invalid count {invalid} exceeds {n} samples")));
+    }
+    let rest = r.take(r.remaining(), "runs")?;
+    // n + 1 runs at most, 10 bytes each at most.
+    let runs = entropy::inflate(rest, (n + 1).saturating_mul(10), "mask section")?;
+    let mut vr = varint::VarintReader::new(&runs, "mask section runs");
+    let mut mask = Vec::with_capacity(n);
+    let mut current = true;
+    let mut seen_invalid: u64 = 0;
+    let mut k = 0usize;
+    while mask.len() < n {
+        let run = vr.u64()?;
+        if run > (n - mask.len()) as u64 {
+            return Err(r.corrupt("runs add up to more samples than the raster has"));
+        }
+        if run == 0 && k > 0 {
+            return Err(r.corrupt("empty run after the first"));
+        }
+        k += 1;
+        mask.extend(std::iter::repeat_n(current, run as usize));
+        if !current {
+            seen_invalid += run;
+        }
+        current = !current;
+    }
+    vr.finish()?;
+    if seen_invalid != invalid {
+        return Err(r.corrupt(format!(
+            "runs give {seen_invalid} invalid samples, the header says {invalid}"
+        )));
+    }
+    Ok(mask)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn masks_round_trip(mask in proptest::collection::vec(proptest::bool::weighted(0.8), 1..3000)) {
+            let enc = encode(&mask);
+            prop_assert_eq!(decode(&enc, mask.len()).unwrap(), mask.clone());
+            // Wrong sample counts are rejected.
+            prop_assert!(decode(&enc, mask.len() + 1).is_err());
+            if mask.len() > 1 {
+                prop_assert!(decode(&enc, mask.len() - 1).is_err());
+            }
+        }
+    }
+
+    #[test]
+    fn all_invalid_and_all_valid() {
+        for mask in [vec![false; 100], vec![true; 100], vec![false], vec![true]] {
+            assert_eq!(decode(&encode(&mask), mask.len()).unwrap(), mask);
+        }
+    }
+}

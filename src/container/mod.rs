@@ -1,0 +1,415 @@
+//! The `.vtz` byte layout: magic, version, header, a checksummed section directory and the
+//! section payloads (spec/FORMAT.md). Only this module knows section framing.
+
+pub mod bytes;
+pub mod header;
+pub mod mask;
+
+pub use header::Header;
+
+use crate::error::{Error, Result};
+use bytes::{ByteReader, PutLe};
+use std::io::{Read, Seek, SeekFrom};
+
+/// The 8 magic bytes every `.vtz` file starts with.
+pub const MAGIC: [u8; 8] = [0x89, b'V', b'T', b'Z', 0x0d, 0x0a, 0x1a, 0x0a];
+/// The container version this crate writes.
+pub const VERSION: u16 = 1;
+/// Most sections a decoder accepts in one file.
+pub const MAX_SECTIONS: u32 = 4096;
+/// Bytes of one directory entry.
+pub const DIR_ENTRY_LEN: usize = 16;
+
+/// Section flag: a decoder that does not know this section's type must reject the file.
+pub const SF_REQUIRED: u16 = 1;
+const SF_KNOWN: u16 = SF_REQUIRED;
+
+/// Section types (spec/FORMAT.md, "Section types").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SectionKind {
+    /// Validity mask (nodata samples).
+    Mask,
+    /// Quantized or lossless grid of samples (the trivial representation).
+    Grid,
+    /// Greedy Voronoi/Sibson sites (reserved).
+    Sites,
+    /// Fractal interpolation surface coefficients (reserved).
+    Fis,
+    /// Haar wavelet coefficients (reserved).
+    Haar,
+    /// Residual layer (reserved).
+    Residual,
+    /// Free-form UTF-8 JSON metadata.
+    Metadata,
+    /// A type this version does not know.
+    Unknown(u16),
+}
+
+impl SectionKind {
+    pub fn code(self) -> u16 {
+        match self {
+            SectionKind::Mask => 1,
+            SectionKind::Grid => 2,
+            SectionKind::Sites => 3,
+            SectionKind::Fis => 4,
+            SectionKind::Haar => 5,
+            SectionKind::Residual => 6,
+            SectionKind::Metadata => 7,
+            SectionKind::Unknown(c) => c,
+        }
+    }
+    pub fn from_code(c: u16) -> SectionKind {
+        match c {
+            1 => SectionKind::Mask,
+            2 => SectionKind::Grid,
+            3 => SectionKind::Sites,
+            4 => SectionKind::Fis,
+            5 => SectionKind::Haar,
+            6 => SectionKind::Residual,
+            7 => SectionKind::Metadata,
+            c => SectionKind::Unknown(c),
+        }
+    }
+    pub fn name(self) -> String {
+        match self {
+            SectionKind::Mask => "mask".into(),
+            SectionKind::Grid => "grid".into(),
+            SectionKind::Sites => "sites".into(),
+            SectionKind::Fis => "fis".into(),
+            SectionKind::Haar => "haar".into(),
+            SectionKind::Residual => "residual".into(),
+            SectionKind::Metadata => "metadata".into(),
+            SectionKind::Unknown(c) => format!("unknown-{c}"),
+        }
+    }
+    /// Whether a section of this kind represents the samples (can be a primary section).
+    pub fn is_representation(self) -> bool {
+        matches!(
+            self,
+            SectionKind::Grid
+                | SectionKind::Sites
+                | SectionKind::Fis
+                | SectionKind::Haar
+                | SectionKind::Residual
+        )
+    }
+}
+
+/// A section as it is written: its kind, flags and payload.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Section {
+    pub kind: SectionKind,
+    pub flags: u16,
+    pub payload: Vec<u8>,
+}
+
+/// A directory entry as read: where a section is and how to check it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SectionEntry {
+    pub kind: SectionKind,
+    pub flags: u16,
+    pub crc: u32,
+    pub offset: u64,
+    pub length: u64,
+}
+
+/// Resource limits a decoder enforces on untrusted input.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Limits {
+    /// Most samples (width × height) a decoded raster may have.
+    pub max_samples: u64,
+    /// Most bytes any one section may hold.
+    pub max_section_bytes: u64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            max_samples: crate::raster::DEFAULT_MAX_SAMPLES,
+            max_section_bytes: 1 << 32,
+        }
+    }
+}
+
+/// Serialize a complete file: header then `sections` in order.
+pub fn write(header: &Header, sections: &[Section]) -> Vec<u8> {
+    let body = header.to_bytes();
+    let payload_len: usize = sections.iter().map(|s| s.payload.len()).sum();
+    let mut out = Vec::with_capacity(32 + body.len() + sections.len() * DIR_ENTRY_LEN + payload_len);
+    out.extend_from_slice(&MAGIC);
+    out.put_u16(VERSION);
+    out.put_u16(0); // required flags: none defined in version 1
+    out.put_u32(body.len() as u32);
+    out.extend_from_slice(&body);
+    let crc = crc32fast::hash(&out);
+    out.put_u32(crc);
+    let dir_start = out.len();
+    out.put_u32(sections.len() as u32);
+    for s in sections {
+        out.put_u16(s.kind.code());
+        out.put_u16(s.flags);
+        out.put_u32(crc32fast::hash(&s.payload));
+        out.put_u64(s.payload.len() as u64);
+    }
+    let crc = crc32fast::hash(&out[dir_start..]);
+    out.put_u32(crc);
+    for s in sections {
+        out.extend_from_slice(&s.payload);
+    }
+    out
+}
+
+fn read_exact<R: Read>(r: &mut R, buf: &mut [u8], what: &str) -> Result<()> {
+    r.read_exact(buf).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::UnexpectedEof {
+            Error::corrupt(format!("file is truncated in the {what}"))
+        } else {
+            Error::io(format!("reading the {what}"), e)
+        }
+    })
+}
+
+/// Reads a `.vtz` file's header and directory, then sections on demand, from any seekable
+/// source. Construction checks the framing (magic, version, checksums, that the declared
+/// lengths add up to the file's length); `read_section` checks each payload's checksum.
+pub struct ContainerReader<R> {
+    inner: R,
+    header: Header,
+    entries: Vec<SectionEntry>,
+    limits: Limits,
+}
+
+impl<R: Read + Seek> ContainerReader<R> {
+    pub fn new(mut inner: R, limits: Limits) -> Result<Self> {
+        let file_len = inner
+            .seek(SeekFrom::End(0))
+            .map_err(|e| Error::io("measuring the file", e))?;
+        inner
+            .seek(SeekFrom::Start(0))
+            .map_err(|e| Error::io("seeking", e))?;
+        let mut fixed = [0u8; 16];
+        if file_len < 16 {
+            // Tell "not a vtz file" apart from "a truncated one" where the bytes allow.
+            let mut head = vec![0u8; file_len as usize];
+            read_exact(&mut inner, &mut head, "file start")?;
+            if MAGIC.starts_with(&head) {
+                return Err(Error::corrupt("file is truncated in the file start"));
+            }
+            return Err(Error::corrupt("not a vtz file (bad magic)"));
+        }
+        read_exact(&mut inner, &mut fixed, "file start")?;
+        if fixed[..8] != MAGIC {
+            return Err(Error::corrupt("not a vtz file (bad magic)"));
+        }
+        let version = u16::from_le_bytes([fixed[8], fixed[9]]);
+        if version != VERSION {
+            return Err(Error::unsupported(format!(
+                "vtz format version {version} (this decoder reads version {VERSION})"
+            )));
+        }
+        let req = u16::from_le_bytes([fixed[10], fixed[11]]);
+        if req != 0 {
+            return Err(Error::unsupported(format!(
+                "required feature flags 0x{req:04x} are not known to this decoder"
+            )));
+        }
+        let hlen = u32::from_le_bytes([fixed[12], fixed[13], fixed[14], fixed[15]]);
+        if hlen > header::MAX_HEADER_LEN {
+            return Err(Error::corrupt(format!(
+                "header length {hlen} is over the limit of {}",
+                header::MAX_HEADER_LEN
+            )));
+        }
+        if 16 + hlen as u64 + 4 > file_len {
+            return Err(Error::corrupt("file is truncated in the header"));
+        }
+        let mut hbuf = vec![0u8; hlen as usize + 4];
+        read_exact(&mut inner, &mut hbuf, "header")?;
+        let (body, crc_bytes) = hbuf.split_at(hlen as usize);
+        let mut h = crc32fast::Hasher::new();
+        h.update(&fixed);
+        h.update(body);
+        if h.finalize() != u32::from_le_bytes(crc_bytes.try_into().expect("4 bytes")) {
+            return Err(Error::corrupt("header checksum mismatch"));
+        }
+        let header = Header::from_bytes(body)?;
+        if header.samples() > limits.max_samples {
+            return Err(Error::limit(format!(
+                "raster of {}x{} = {} samples is over the limit of {}",
+                header.width,
+                header.height,
+                header.samples(),
+                limits.max_samples
+            )));
+        }
+        // Directory.
+        let dir_pos = 16 + hlen as u64 + 4;
+        let mut cnt = [0u8; 4];
+        if dir_pos + 4 > file_len {
+            return Err(Error::corrupt("file is truncated in the section directory"));
+        }
+        read_exact(&mut inner, &mut cnt, "section directory")?;
+        let count = u32::from_le_bytes(cnt);
+        if count > MAX_SECTIONS {
+            return Err(Error::corrupt(format!(
+                "section count {count} is over the limit of {MAX_SECTIONS}"
+            )));
+        }
+        let dir_len = count as u64 * DIR_ENTRY_LEN as u64 + 4;
+        if dir_pos + 4 + dir_len > file_len {
+            return Err(Error::corrupt("file is truncated in the section directory"));
+        }
+        let mut dbuf = vec![0u8; dir_len as usize];
+        read_exact(&mut inner, &mut dbuf, "section directory")?;
+        let (entries_bytes, crc_bytes) = dbuf.split_at(dbuf.len() - 4);
+        let mut h = crc32fast::Hasher::new();
+        h.update(&cnt);
+        h.update(entries_bytes);
+        if h.finalize() != u32::from_le_bytes(crc_bytes.try_into().expect("4 bytes")) {
+            return Err(Error::corrupt("section directory checksum mismatch"));
+        }
+        let mut r = ByteReader::new(entries_bytes, "section directory");
+        let mut offset = dir_pos + 4 + dir_len;
+        let mut entries = Vec::with_capacity(count as usize);
+        for i in 0..count {
+            let kind = SectionKind::from_code(r.u16("section type")?);
+            let flags = r.u16("section flags")?;
+            let crc = r.u32("section checksum")?;
+            let length = r.u64("section length")?;
+            if kind.code() == 0 {
+                return Err(Error::corrupt(format!("section {i}: type 0 is reserved")));
+            }
+            if flags & !SF_KNOWN != 0 {
+                return Err(Error::unsupported(format!(
+                    "section {i} ({}): unknown flags 0x{:04x}",
+                    kind.name(),
+                    flags & !SF_KNOWN
+                )));
+            }
+            if let SectionKind::Unknown(c) = kind {
+                if flags & SF_REQUIRED != 0 {
+                    return Err(Error::unsupported(format!(
+                        "section {i} has type {c}, which this decoder does not know and the file requires"
+                    )));
+                }
+            }
+            if length > limits.max_section_bytes {
+                return Err(Error::limit(format!(
+                    "section {i} ({}) of {length} bytes is over the limit of {}",
+                    kind.name(),
+                    limits.max_section_bytes
+                )));
+            }
+            let end = offset
+                .checked_add(length)
+                .filter(|&e| e <= file_len)
+                .ok_or_else(|| {
+                    Error::corrupt(format!(
+                        "file is truncated in section {i} ({}): it needs {length} bytes at offset {offset}, the file has {file_len}",
+                        kind.name()
+                    ))
+                })?;
+            entries.push(SectionEntry {
+                kind,
+                flags,
+                crc,
+                offset,
+                length,
+            });
+            offset = end;
+        }
+        if offset != file_len {
+            return Err(Error::corrupt(format!(
+                "{} unexpected bytes after the last section",
+                file_len - offset
+            )));
+        }
+        if count > 0 || header.primary != 0 {
+            match entries.get(header.primary as usize) {
+                Some(e) if e.kind.is_representation() || matches!(e.kind, SectionKind::Unknown(_)) => {}
+                Some(e) => {
+                    return Err(Error::corrupt(format!(
+                        "primary section {} is a {} section, not a representation",
+                        header.primary,
+                        e.kind.name()
+                    )));
+                }
+                None => {
+                    return Err(Error::corrupt(format!(
+                        "primary section {} does not exist ({} sections)",
+                        header.primary, count
+                    )));
+                }
+            }
+        }
+        Ok(ContainerReader {
+            inner,
+            header,
+            entries,
+            limits,
+        })
+    }
+
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+    pub fn entries(&self) -> &[SectionEntry] {
+        &self.entries
+    }
+    pub fn limits(&self) -> &Limits {
+        &self.limits
+    }
+
+    /// Index of the first section of `kind`, if any.
+    pub fn find(&self, kind: SectionKind) -> Option<usize> {
+        self.entries.iter().position(|e| e.kind == kind)
+    }
+
+    /// Read section `i`'s payload and check its checksum.
+    pub fn read_section(&mut self, i: usize) -> Result<Vec<u8>> {
+        let e = self
+            .entries
+            .get(i)
+            .ok_or_else(|| Error::invalid(format!("no section {i}")))?
+            .clone();
+        self.inner
+            .seek(SeekFrom::Start(e.offset))
+            .map_err(|err| Error::io("seeking", err))?;
+        // The length was checked against the file length when the directory was read.
+        let mut buf = vec![0u8; e.length as usize];
+        read_exact(&mut self.inner, &mut buf, &format!("{} section", e.kind.name()))?;
+        if crc32fast::hash(&buf) != e.crc {
+            return Err(Error::corrupt(format!(
+                "section {i} ({}): checksum mismatch",
+                e.kind.name()
+            )));
+        }
+        Ok(buf)
+    }
+}
+
+/// A whole file in memory: header plus every section (checksums verified).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Container {
+    pub header: Header,
+    pub sections: Vec<Section>,
+}
+
+/// Parse a complete file from memory, verifying every checksum.
+pub fn read(bytes: &[u8], limits: Limits) -> Result<Container> {
+    let mut r = ContainerReader::new(std::io::Cursor::new(bytes), limits)?;
+    let mut sections = Vec::with_capacity(r.entries().len());
+    for i in 0..r.entries().len() {
+        let payload = r.read_section(i)?;
+        let e = &r.entries()[i];
+        sections.push(Section {
+            kind: e.kind,
+            flags: e.flags,
+            payload,
+        });
+    }
+    Ok(Container {
+        header: r.header().clone(),
+        sections,
+    })
+}
