@@ -437,11 +437,16 @@ pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
     let r = match format {
         Format::GeoTiff => geotiff::read(&bytes, opts),
         Format::Png | Format::TerrainRgb => {
+            // The sidecar gives the mapping (unless the caller's overrides it) and the georef.
+            let sidecar = png::read_sidecar(path)?;
             let mapping = match &opts.png_mapping {
                 Some(m) => Some(m.clone()),
-                None => png::read_sidecar(path)?,
+                None => sidecar.as_ref().map(|s| s.mapping.clone()),
             };
-            png::read(&bytes, mapping.as_ref(), format == Format::TerrainRgb, opts)
+            png::read(&bytes, mapping.as_ref(), format == Format::TerrainRgb, opts).map(|mut r| {
+                r.georef = sidecar.and_then(|s| s.georef);
+                r
+            })
         }
         Format::Exr => exr::read(&bytes, opts),
         Format::Hgt => {
@@ -490,7 +495,17 @@ pub fn encode_path(raster: &Raster, path: &Path, opts: &WriteOptions) -> Result<
             }
             v
         }
-        Format::TerrainRgb => one(png::write_terrain_rgb(raster)?),
+        Format::TerrainRgb => {
+            let (png, sidecar) = png::write_terrain_rgb(raster)?;
+            let mut v = one(png);
+            if let Some(s) = sidecar {
+                v.push(OutputFile {
+                    path: png::sidecar_path(path),
+                    bytes: s,
+                });
+            }
+            v
+        }
         Format::Exr => one(exr::write(raster)?),
         Format::Hgt => one(hgt::write(raster)?),
         Format::Asc => one(asc::write(raster)?),
