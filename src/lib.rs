@@ -20,6 +20,8 @@ pub mod fsio;
 pub mod grid;
 pub mod metrics;
 pub mod raster;
+pub mod sibson;
+pub mod triangulation;
 
 pub use container::Limits;
 pub use error::{Error, Result};

@@ -1,0 +1,377 @@
+//! Sibson's natural-neighbour interpolant over the sites, evaluated canonically.
+//!
+//! The weight of a natural neighbour v of p is the area p's Voronoi cell would steal from v's
+//! if p were inserted. That cell comes from the Bowyer–Watson cavity of p (the triangles whose
+//! circumcircle strictly contains p): for each cavity-boundary vertex v_i (counter-clockwise
+//! v_0 … v_{k−1}) the stolen region is the convex polygon
+//! `[cc(p, v_i, v_{i+1}), C(t_1), …, C(t_m), cc(p, v_{i−1}, v_i)]` where t_1 … t_m are the
+//! cavity triangles around v_i and C their circumcentres (Watson's construction).
+//!
+//! Determinism: the cavity is a set defined by exact integer predicates, the boundary cycle
+//! starts at its lowest vertex id, and every float operation runs in a fixed order on values
+//! derived only from the sites' integer positions and heights, so the result is a pure
+//! function of (sites, p): the same bits for any locate hint, window or thread.
+//! Samples on a hull edge take the linear interpolant along that edge (Sibson's limit there);
+//! when every site is collinear the surface is piecewise linear along the line.
+
+use crate::triangulation::{Location, Triangulation, orient};
+
+/// Scratch buffers for evaluation (reuse one per thread to avoid allocation).
+#[derive(Default, Clone, Debug)]
+pub struct Scratch {
+    cavity: Vec<u32>,
+    stack: Vec<u32>,
+    centres: Vec<[f64; 2]>,
+    bnd: Vec<(u32, u32, u32)>,
+    cycle: Vec<(u32, u32)>,
+    poly: Vec<[f64; 2]>,
+}
+
+/// The interpolating surface: a triangulation of the sites and their heights.
+#[derive(Clone, Debug, Default)]
+pub struct Surface {
+    tri: Triangulation,
+    heights: Vec<f64>,
+}
+
+#[inline]
+fn sub(a: [i64; 2], b: [i64; 2]) -> [f64; 2] {
+    [(a[0] - b[0]) as f64, (a[1] - b[1]) as f64]
+}
+
+/// Circumcentre of (0, a, b), `a` and `b` given relative to the origin.
+#[inline]
+fn cc0(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
+    let d = 2.0 * (a[0] * b[1] - a[1] * b[0]);
+    let la = a[0] * a[0] + a[1] * a[1];
+    let lb = b[0] * b[0] + b[1] * b[1];
+    [(b[1] * la - a[1] * lb) / d, (a[0] * lb - b[0] * la) / d]
+}
+
+fn polygon_area(poly: &[[f64; 2]]) -> f64 {
+    let n = poly.len();
+    let mut s = 0.0;
+    for i in 0..n {
+        let a = poly[i];
+        let b = poly[(i + 1) % n];
+        s += a[0] * b[1] - a[1] * b[0];
+    }
+    (0.5 * s).abs()
+}
+
+impl Surface {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    pub fn triangulation(&self) -> &Triangulation {
+        &self.tri
+    }
+    pub fn heights(&self) -> &[f64] {
+        &self.heights
+    }
+    pub fn len(&self) -> usize {
+        self.heights.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.heights.is_empty()
+    }
+
+    /// Add a site at integer position `p` with height `h`; returns its id.
+    pub fn insert(&mut self, p: [i64; 2], h: f64) -> crate::Result<u32> {
+        let id = self.tri.insert(p)?;
+        self.heights.push(h);
+        Ok(id)
+    }
+
+    /// The surface's value at `p`, or `None` outside the sites' convex hull.
+    /// `hint` is a triangle to start the walk from; it is updated to where `p` was found.
+    pub fn eval(&self, p: [i64; 2], hint: &mut u32, s: &mut Scratch) -> Option<f64> {
+        if !self.tri.is_2d() {
+            return self.eval_collinear(p);
+        }
+        match self.tri.locate(p, Some(*hint)) {
+            Location::Vertex(v) => Some(self.heights[v as usize]),
+            Location::Outside => None,
+            Location::Triangle(t) => {
+                *hint = t;
+                Some(self.eval_in(p, t, s))
+            }
+        }
+    }
+
+    /// Evaluate at `p` known to lie in (or on) real triangle `t` and not on a vertex.
+    pub fn eval_in(&self, p: [i64; 2], t: u32, s: &mut Scratch) -> f64 {
+        let tri = &self.tri;
+        let tr = *tri.tri(t);
+        // On a hull edge: linear along the edge.
+        for k in 0..3 {
+            let a = tr.v[(k + 1) % 3];
+            let b = tr.v[(k + 2) % 3];
+            if tri.tri(tr.n[k]).is_ghost() && orient(tri.point(a), tri.point(b), p) == 0 {
+                return self.lerp_edge(a, b, p);
+            }
+        }
+        // Cavity: real triangles whose circumcircle strictly contains p.
+        s.cavity.clear();
+        s.stack.clear();
+        s.cavity.push(t);
+        s.stack.push(t);
+        while let Some(c) = s.stack.pop() {
+            let n = tri.tri(c).n;
+            for nb in n {
+                if tri.tri(nb).is_ghost() || s.cavity.contains(&nb) {
+                    continue;
+                }
+                if tri.in_circle(nb, p) {
+                    s.cavity.push(nb);
+                    s.stack.push(nb);
+                }
+            }
+        }
+        // Circumcentres of cavity triangles, relative to p; boundary edges.
+        s.centres.clear();
+        s.bnd.clear();
+        for (ci, &c) in s.cavity.iter().enumerate() {
+            let v = tri.tri(c).v;
+            let a = sub(tri.point(v[0]), p);
+            let b = sub(tri.point(v[1]), p);
+            let d = sub(tri.point(v[2]), p);
+            let o = cc0([b[0] - a[0], b[1] - a[1]], [d[0] - a[0], d[1] - a[1]]);
+            s.centres.push([a[0] + o[0], a[1] + o[1]]);
+            let n = tri.tri(c).n;
+            for k in 0..3 {
+                if !s.cavity.contains(&n[k]) {
+                    s.bnd.push((v[(k + 1) % 3], v[(k + 2) % 3], ci as u32));
+                }
+            }
+        }
+        // Boundary cycle from its lowest vertex id, counter-clockwise around p.
+        let start = s.bnd.iter().map(|e| e.0).min().expect("cavity has a boundary");
+        s.cycle.clear();
+        let mut cur = start;
+        loop {
+            let &(a, b, _) = s
+                .bnd
+                .iter()
+                .find(|e| e.0 == cur)
+                .expect("cavity boundary is a cycle");
+            s.cycle.push((a, b));
+            cur = b;
+            if cur == start || s.cycle.len() > s.bnd.len() {
+                break;
+            }
+        }
+        let k = s.cycle.len();
+        let mut num = 0.0;
+        let mut den = 0.0;
+        let mut g_prev = {
+            let (a, b) = s.cycle[k - 1];
+            cc0(sub(tri.point(a), p), sub(tri.point(b), p))
+        };
+        for i in 0..k {
+            let (vi, vn) = s.cycle[i];
+            let g_next = cc0(sub(tri.point(vi), p), sub(tri.point(vn), p));
+            s.poly.clear();
+            s.poly.push(g_next);
+            // Cavity triangles around vi, from the one holding edge vi→vn, counter-clockwise.
+            let mut ct = s
+                .bnd
+                .iter()
+                .find(|e| e.0 == vi && e.1 == vn)
+                .map(|e| s.cavity[e.2 as usize])
+                .expect("boundary edge has a cavity triangle");
+            for _ in 0..s.cavity.len() {
+                let ci = s.cavity.iter().position(|&c| c == ct).expect("in cavity");
+                s.poly.push(s.centres[ci]);
+                let tr = tri.tri(ct);
+                let kv = tr.v.iter().position(|&v| v == vi).expect("vertex of triangle");
+                let nb = tr.n[(kv + 1) % 3];
+                if !s.cavity.contains(&nb) {
+                    break;
+                }
+                ct = nb;
+            }
+            s.poly.push(g_prev);
+            let w = polygon_area(&s.poly);
+            num += w * self.heights[vi as usize];
+            den += w;
+            g_prev = g_next;
+        }
+        num / den
+    }
+
+    fn lerp_edge(&self, a: u32, b: u32, p: [i64; 2]) -> f64 {
+        let (a, b) = if a < b { (a, b) } else { (b, a) };
+        let pa = self.tri.point(a);
+        let pb = self.tri.point(b);
+        let l2 = ((pb[0] - pa[0]) * (pb[0] - pa[0]) + (pb[1] - pa[1]) * (pb[1] - pa[1])) as f64;
+        let t = ((p[0] - pa[0]) * (pb[0] - pa[0]) + (p[1] - pa[1]) * (pb[1] - pa[1])) as f64 / l2;
+        let ha = self.heights[a as usize];
+        let hb = self.heights[b as usize];
+        ha + (hb - ha) * t
+    }
+
+    /// Fewer than three non-collinear sites: piecewise linear along their line.
+    fn eval_collinear(&self, p: [i64; 2]) -> Option<f64> {
+        let pts = self.tri.points();
+        if let Some(i) = pts.iter().position(|&q| q == p) {
+            return Some(self.heights[i]);
+        }
+        if pts.len() < 2 || orient(pts[0], pts[1], p) != 0 {
+            return None;
+        }
+        let dir = [pts[1][0] - pts[0][0], pts[1][1] - pts[0][1]];
+        let param = |q: [i64; 2]| (q[0] - pts[0][0]) * dir[0] + (q[1] - pts[0][1]) * dir[1];
+        let tp = param(p);
+        // Nearest site on each side of p (ties cannot happen: positions are distinct).
+        let mut lo: Option<(i64, usize)> = None;
+        let mut hi: Option<(i64, usize)> = None;
+        for (i, &q) in pts.iter().enumerate() {
+            let t = param(q);
+            if t < tp && lo.is_none_or(|(b, _)| t > b) {
+                lo = Some((t, i));
+            }
+            if t > tp && hi.is_none_or(|(b, _)| t < b) {
+                hi = Some((t, i));
+            }
+        }
+        let ((_, a), (_, b)) = (lo?, hi?);
+        Some(self.lerp_edge(a as u32, b as u32, p))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn surface(pts: &[[i64; 2]], mut f: impl FnMut([i64; 2]) -> f64) -> Surface {
+        let mut s = Surface::new();
+        for &p in pts {
+            s.insert(p, f(p)).unwrap();
+        }
+        s
+    }
+
+    fn lcg(seed: &mut u64) -> u64 {
+        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        *seed >> 33
+    }
+
+    fn random_sites(n: usize, w: i64, h: i64, seed: u64) -> Vec<[i64; 2]> {
+        let mut s = seed;
+        let mut pts = vec![[0, 0], [w, 0], [w, h], [0, h]];
+        while pts.len() < n {
+            let p = [(lcg(&mut s) % (w as u64 + 1)) as i64, (lcg(&mut s) % (h as u64 + 1)) as i64];
+            if !pts.contains(&p) {
+                pts.push(p);
+            }
+        }
+        pts
+    }
+
+    #[test]
+    fn reproduces_linear_functions() {
+        let f = |p: [i64; 2]| 3.0 + 0.75 * p[0] as f64 - 1.25 * p[1] as f64;
+        for seed in 1..6 {
+            let pts = random_sites(60, 50, 40, seed);
+            let s = surface(&pts, f);
+            let mut sc = Scratch::default();
+            let mut hint = 0;
+            for y in 0..=40 {
+                for x in 0..=50 {
+                    let v = s.eval([x, y], &mut hint, &mut sc).unwrap();
+                    assert!((v - f([x, y])).abs() < 1e-9, "({x},{y}): {v} vs {}", f([x, y]));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn interpolates_sites_and_stays_within_their_range() {
+        let pts = random_sites(80, 30, 30, 7);
+        let mut seed = 99;
+        let hs: Vec<f64> = (0..pts.len()).map(|_| (lcg(&mut seed) % 1000) as f64).collect();
+        let mut s = Surface::new();
+        for (p, h) in pts.iter().zip(&hs) {
+            s.insert(*p, *h).unwrap();
+        }
+        let mut sc = Scratch::default();
+        let mut hint = 0;
+        for (p, h) in pts.iter().zip(&hs) {
+            assert_eq!(s.eval(*p, &mut hint, &mut sc), Some(*h));
+        }
+        for y in 0..=30 {
+            for x in 0..=30 {
+                let v = s.eval([x, y], &mut hint, &mut sc).unwrap();
+                assert!((0.0..=999.0).contains(&v), "{v}");
+            }
+        }
+    }
+
+    #[test]
+    fn result_does_not_depend_on_the_hint() {
+        let pts = random_sites(100, 40, 40, 3);
+        let mut seed = 5;
+        let s = surface(&pts, |_| (lcg(&mut seed) % 500) as f64 * 0.37);
+        let tris: Vec<u32> = s.triangulation().real_triangles().collect();
+        let mut sc = Scratch::default();
+        for y in 0..=40 {
+            for x in 0..=40 {
+                let mut h0 = tris[0];
+                let v0 = s.eval([x, y], &mut h0, &mut sc).unwrap();
+                for &t in tris.iter().step_by(7) {
+                    let mut h = t;
+                    let v = s.eval([x, y], &mut h, &mut sc).unwrap();
+                    assert_eq!(v.to_bits(), v0.to_bits(), "({x},{y})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn matches_spade_natural_neighbour() {
+        use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation as _};
+        struct Ph(Point2<f64>, f64);
+        impl HasPosition for Ph {
+            type Scalar = f64;
+            fn position(&self) -> Point2<f64> {
+                self.0
+            }
+        }
+        let pts = random_sites(150, 64, 48, 11);
+        let mut seed = 17;
+        let hs: Vec<f64> = (0..pts.len()).map(|_| (lcg(&mut seed) % 3000) as f64 * 0.1).collect();
+        let mut ours = Surface::new();
+        let mut theirs: DelaunayTriangulation<Ph> = DelaunayTriangulation::new();
+        for (p, h) in pts.iter().zip(&hs) {
+            ours.insert(*p, *h).unwrap();
+            theirs
+                .insert(Ph(Point2::new(p[0] as f64, p[1] as f64), *h))
+                .unwrap();
+        }
+        let nn = theirs.natural_neighbor();
+        let mut sc = Scratch::default();
+        let mut hint = 0;
+        let mut worst: f64 = 0.0;
+        for y in 0..=48 {
+            for x in 0..=64 {
+                let v = ours.eval([x, y], &mut hint, &mut sc).unwrap();
+                if let Some(r) = nn.interpolate(|v| v.data().1, Point2::new(x as f64, y as f64)) {
+                    worst = worst.max((v - r).abs());
+                }
+            }
+        }
+        assert!(worst < 1e-6, "largest difference from spade: {worst}");
+    }
+
+    #[test]
+    fn collinear_sites_interpolate_linearly() {
+        let s = surface(&[[0, 0], [10, 0], [4, 0]], |p| p[0] as f64 * 2.0);
+        let mut sc = Scratch::default();
+        let mut hint = 0;
+        assert_eq!(s.eval([7, 0], &mut hint, &mut sc), Some(14.0));
+        assert_eq!(s.eval([7, 1], &mut hint, &mut sc), None);
+        assert_eq!(s.eval([11, 0], &mut hint, &mut sc), None);
+    }
+}
