@@ -3,6 +3,7 @@
 //! Version 1 of the format uses zig-zag LEB128 varints compressed with raw DEFLATE; the
 //! adaptive arithmetic coder of the sites section will live here too.
 
+pub mod range;
 pub mod varint;
 
 use crate::error::{Error, Result};
