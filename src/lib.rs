@@ -21,6 +21,7 @@ pub mod grid;
 pub mod metrics;
 pub mod raster;
 pub mod sibson;
+pub mod sites;
 pub mod triangulation;
 
 pub use container::Limits;
@@ -68,13 +69,68 @@ impl ErrorBound {
     }
 }
 
+/// Which representation [`encode`] writes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Method {
+    /// The smallest of the methods that meet the request (the default).
+    #[default]
+    Best,
+    /// Greedy Voronoi/Sibson sites (needs a bound, an RMSE or a site count).
+    Sibson,
+    /// Every sample, predicted and quantized (the only lossless method).
+    Grid,
+}
+
+impl Method {
+    pub fn parse(s: &str) -> Result<Method> {
+        Ok(match s.to_ascii_lowercase().as_str() {
+            "best" => Method::Best,
+            "sibson" | "sites" => Method::Sibson,
+            "grid" => Method::Grid,
+            o => return Err(Error::invalid(format!("unknown method '{o}' (best, sibson, grid)"))),
+        })
+    }
+}
+
 /// Options for [`encode`].
 #[derive(Clone, Debug, Default)]
 pub struct EncodeOptions {
-    /// Guarantee every valid sample decodes within this bound; `None` = lossless.
+    /// Guarantee every valid sample decodes within this bound; `None` = lossless unless a
+    /// site count or RMSE is given.
     pub max_error: Option<ErrorBound>,
+    /// Sibson: stop when the RMSE is at most this.
+    pub rmse: Option<ErrorBound>,
+    /// Sibson: stop at this many sites.
+    pub sites: Option<usize>,
+    /// Sibson: refinement norm.
+    pub norm: sites::Norm,
+    pub method: Method,
     /// Free-form JSON stored in a metadata section (e.g. provenance).
     pub metadata: Option<String>,
+}
+
+/// A rectangle of samples: column, row, width, height.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Window {
+    pub x: usize,
+    pub y: usize,
+    pub width: usize,
+    pub height: usize,
+}
+
+impl Window {
+    /// Parse `x,y,w,h`.
+    pub fn parse(s: &str) -> Result<Window> {
+        let v: Vec<usize> = s
+            .split(',')
+            .map(|p| p.trim().parse::<usize>())
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|_| Error::invalid(format!("window '{s}' is not x,y,width,height")))?;
+        match v[..] {
+            [x, y, width, height] => Ok(Window { x, y, width, height }),
+            _ => Err(Error::invalid(format!("window '{s}' is not x,y,width,height"))),
+        }
+    }
 }
 
 /// Options for [`decode_with`].
@@ -83,6 +139,12 @@ pub struct DecodeOptions {
     pub limits: Limits,
     /// Decode this section (index in the directory) instead of the primary one.
     pub section: Option<usize>,
+    /// Sites section: decode only the first N sites (a coarser surface).
+    pub sites: Option<usize>,
+    /// Sites section: decode only the first K levels.
+    pub levels: Option<usize>,
+    /// Decode only this window.
+    pub window: Option<Window>,
 }
 
 /// Build the file header describing `r`.
@@ -109,6 +171,10 @@ fn header_for(r: &Raster) -> Result<Header> {
 pub struct EncodeReport {
     /// Max error guaranteed on every valid sample (0 = lossless), in data units.
     pub max_error: f64,
+    /// The method that was written.
+    pub method: Method,
+    /// Statistics of the sites section, when one was written.
+    pub sites: Option<sites::SitesStats>,
 }
 
 /// Encode a raster into `.vtz` bytes.
@@ -118,12 +184,57 @@ pub fn encode(raster: &Raster, opts: &EncodeOptions) -> Result<Vec<u8>> {
 
 /// Encode a raster into `.vtz` bytes and report the bound achieved.
 pub fn encode_report(raster: &Raster, opts: &EncodeOptions) -> Result<(Vec<u8>, EncodeReport)> {
+    encode_progress(raster, opts, &mut |_| {})
+}
+
+/// [`encode_report`] with a progress callback (fraction done, 0..1).
+pub fn encode_progress(
+    raster: &Raster,
+    opts: &EncodeOptions,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(Vec<u8>, EncodeReport)> {
     raster.validate()?;
     let mut header = header_for(raster)?;
-    let e = opts
-        .max_error
-        .map_or(0.0, |b| b.absolute(header.range));
-    let (grid, bound) = grid::encode(raster, &grid::GridParams { max_error: e })?;
+    let e = opts.max_error.map(|b| b.absolute(header.range));
+    let sibson_asked = opts.sites.is_some() || opts.rmse.is_some();
+    let lossless = e.is_none_or(|e| e == 0.0) && !sibson_asked;
+    if opts.method == Method::Sibson && lossless {
+        return Err(Error::invalid(
+            "the sibson method needs --max-error, --rmse or --sites",
+        ));
+    }
+    let try_sibson = match opts.method {
+        Method::Sibson => true,
+        Method::Grid => false,
+        Method::Best => !lossless,
+    };
+    let try_grid = match opts.method {
+        Method::Grid => true,
+        Method::Sibson => false,
+        Method::Best => !sibson_asked,
+    };
+    if opts.method == Method::Grid && sibson_asked {
+        return Err(Error::invalid("--sites and --rmse need the sibson method"));
+    }
+    let mut best: Option<(SectionKind, Vec<u8>, f64, Option<sites::SitesStats>)> = None;
+    if try_sibson {
+        let sp = sites::SitesParams {
+            max_error: e,
+            rmse: opts.rmse.map(|b| b.absolute(header.range)),
+            max_sites: opts.sites,
+            norm: opts.norm,
+            step_factor: None,
+        };
+        let (payload, stats) = sites::encode(raster, &header, &sp, progress)?;
+        best = Some((SectionKind::Sites, payload, stats.max_error, Some(stats)));
+    }
+    if try_grid {
+        let (g, bound) = grid::encode(raster, &grid::GridParams { max_error: e.unwrap_or(0.0) })?;
+        if best.as_ref().is_none_or(|b| g.len() < b.1.len()) {
+            best = Some((SectionKind::Grid, g, bound, None));
+        }
+    }
+    let (kind, payload, bound, stats) = best.expect("one method was tried");
     let mut sections = Vec::new();
     if let Some(m) = &raster.mask {
         if m.iter().any(|&b| !b) {
@@ -136,9 +247,9 @@ pub fn encode_report(raster: &Raster, opts: &EncodeOptions) -> Result<(Vec<u8>, 
     }
     header.primary = sections.len() as u16;
     sections.push(Section {
-        kind: SectionKind::Grid,
+        kind,
         flags: SF_REQUIRED,
-        payload: grid,
+        payload,
     });
     if let Some(meta) = &opts.metadata {
         serde_json::from_str::<serde_json::Value>(meta)
@@ -151,7 +262,11 @@ pub fn encode_report(raster: &Raster, opts: &EncodeOptions) -> Result<(Vec<u8>, 
     }
     Ok((
         container::write(&header, &sections),
-        EncodeReport { max_error: bound },
+        EncodeReport {
+            max_error: bound,
+            method: if kind == SectionKind::Sites { Method::Sibson } else { Method::Grid },
+            sites: stats,
+        },
     ))
 }
 
@@ -175,9 +290,33 @@ pub fn decode_with(bytes: &[u8], opts: &DecodeOptions) -> Result<Raster> {
         .get(idx)
         .ok_or_else(|| Error::invalid(format!("the file has no section {idx}")))?
         .clone();
+    let (w, h) = (header.width as usize, header.height as usize);
+    let win = opts.window.unwrap_or(Window { x: 0, y: 0, width: w, height: h });
+    if win.width == 0
+        || win.height == 0
+        || win.x.checked_add(win.width).is_none_or(|e| e > w)
+        || win.y.checked_add(win.height).is_none_or(|e| e > h)
+    {
+        return Err(Error::invalid(format!(
+            "window {},{},{},{} is not inside the {w}x{h} raster",
+            win.x, win.y, win.width, win.height
+        )));
+    }
     let payload = rd.read_section(idx)?;
     let data = match entry.kind {
-        SectionKind::Grid => grid::decode(&payload, &header, mask.as_deref())?,
+        SectionKind::Grid => {
+            if opts.sites.is_some() || opts.levels.is_some() {
+                return Err(Error::invalid(
+                    "--sites and --level need a sites section (this one is a grid)",
+                ));
+            }
+            let full = grid::decode(&payload, &header, mask.as_deref())?;
+            crop(&full, w, win)
+        }
+        SectionKind::Sites => {
+            let d = sites::decode_sites(&payload, &header, mask.as_deref(), opts.levels, opts.sites)?;
+            sites::render(&d, &header, mask.as_deref(), (win.x, win.y, win.width, win.height))?
+        }
         k => {
             return Err(Error::unsupported(format!(
                 "decoding a {} section is not implemented by this version",
@@ -186,17 +325,25 @@ pub fn decode_with(bytes: &[u8], opts: &DecodeOptions) -> Result<Raster> {
         }
     };
     let mut r = Raster {
-        width: header.width as usize,
-        height: header.height as usize,
+        width: win.width,
+        height: win.height,
         data,
-        mask,
+        mask: mask.map(|m| crop(&m, w, win)),
         nodata: header.nodata,
         sample_type: header.sample_type,
         mapping: header.mapping,
-        georef: header.georef.clone(),
+        georef: header.georef.as_ref().map(|g| g.window(win.x, win.y)),
     };
     r.normalize_mask();
     Ok(r)
+}
+
+fn crop<T: Copy>(v: &[T], width: usize, win: Window) -> Vec<T> {
+    let mut out = Vec::with_capacity(win.width * win.height);
+    for y in win.y..win.y + win.height {
+        out.extend_from_slice(&v[y * width + win.x..y * width + win.x + win.width]);
+    }
+    out
 }
 
 /// A file's header and section list, for `vtz info`.

@@ -201,6 +201,79 @@ impl Surface {
         num / den
     }
 
+    /// Evaluate every sample of the window `[x0, x0+w) × [y0, y0+h)` of the integer grid for
+    /// which `want(x, y)` holds, by rasterizing each triangle once (no point location).
+    /// Returns row-major values of the window (NaN where not wanted); `None` when a wanted
+    /// sample lies outside the sites' hull.
+    pub fn eval_window(
+        &self,
+        x0: i64,
+        y0: i64,
+        w: usize,
+        h: usize,
+        want: impl Fn(i64, i64) -> bool,
+    ) -> Option<Vec<f64>> {
+        let n = w * h;
+        let mut out = vec![f64::NAN; n];
+        let mut done = vec![false; n];
+        let (x1, y1) = (x0 + w as i64 - 1, y0 + h as i64 - 1);
+        if !self.tri.is_2d() {
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    if want(x, y) {
+                        out[((y - y0) as usize) * w + (x - x0) as usize] = self.eval_collinear([x, y])?;
+                    }
+                }
+            }
+            return Some(out);
+        }
+        let mut s = Scratch::default();
+        for t in self.tri.real_triangles() {
+            let v = self.tri.tri(t).v;
+            let pts = v.map(|i| self.tri.point(i));
+            let ty0 = pts.iter().map(|p| p[1]).min().unwrap_or(0).max(y0);
+            let ty1 = pts.iter().map(|p| p[1]).max().unwrap_or(0).min(y1);
+            for y in ty0..=ty1 {
+                // Intersect the three closed half-planes with row y, exactly.
+                let (mut lo, mut hi) = (x0, x1);
+                for k in 0..3 {
+                    let a = pts[k];
+                    let b = pts[(k + 1) % 3];
+                    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+                    let kk = dx * (y - a[1]);
+                    if dy > 0 {
+                        hi = hi.min(a[0] + kk.div_euclid(dy));
+                    } else if dy < 0 {
+                        lo = lo.max(a[0] - kk.div_euclid(-dy));
+                    } else if kk < 0 {
+                        hi = lo - 1;
+                    }
+                }
+                for x in lo..=hi {
+                    let i = ((y - y0) as usize) * w + (x - x0) as usize;
+                    if done[i] || !want(x, y) {
+                        continue;
+                    }
+                    done[i] = true;
+                    let p = [x, y];
+                    out[i] = match v.iter().position(|&vi| self.tri.point(vi) == p) {
+                        Some(k) => self.heights[v[k] as usize],
+                        None => self.eval_in(p, t, &mut s),
+                    };
+                }
+            }
+        }
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let i = ((y - y0) as usize) * w + (x - x0) as usize;
+                if !done[i] && want(x, y) {
+                    return None;
+                }
+            }
+        }
+        Some(out)
+    }
+
     fn lerp_edge(&self, a: u32, b: u32, p: [i64; 2]) -> f64 {
         let (a, b) = if a < b { (a, b) } else { (b, a) };
         let pa = self.tri.point(a);
@@ -363,6 +436,35 @@ mod tests {
             }
         }
         assert!(worst < 1e-6, "largest difference from spade: {worst}");
+    }
+
+    #[test]
+    fn window_evaluation_matches_pointwise_bit_for_bit() {
+        let pts = random_sites(120, 45, 33, 23);
+        let mut seed = 8;
+        let s = surface(&pts, |_| (lcg(&mut seed) % 900) as f64 * 1.3);
+        let full = s.eval_window(0, 0, 46, 34, |_, _| true).unwrap();
+        let mut sc = Scratch::default();
+        let mut hint = 0;
+        for y in 0..34 {
+            for x in 0..46 {
+                let v = s.eval([x, y], &mut hint, &mut sc).unwrap();
+                assert_eq!(v.to_bits(), full[(y * 46 + x) as usize].to_bits(), "({x},{y})");
+            }
+        }
+        let win = s.eval_window(7, 5, 20, 11, |x, y| (x + y) % 5 != 0).unwrap();
+        for y in 0..11 {
+            for x in 0..20 {
+                let v = win[y * 20 + x];
+                let (gx, gy) = (x as i64 + 7, y as i64 + 5);
+                if (gx + gy) % 5 != 0 {
+                    assert_eq!(v.to_bits(), full[(gy * 46 + gx) as usize].to_bits());
+                } else {
+                    assert!(v.is_nan());
+                }
+            }
+        }
+        assert!(s.eval_window(0, 0, 47, 34, |_, _| true).is_none(), "outside the hull");
     }
 
     #[test]

@@ -53,9 +53,34 @@ pub fn orient(a: [i64; 2], b: [i64; 2], c: [i64; 2]) -> i64 {
 }
 
 /// > 0 when `d` is strictly inside the circumcircle of the counter-clockwise (a, b, c),
-/// 0 on it, < 0 outside. Exact.
+/// 0 on it, < 0 outside. Exact: a floating-point evaluation decides when its error bound
+/// (Shewchuk's `iccerrboundA`) allows, else exact `i128` arithmetic; only the sign is used.
 #[inline]
 pub fn incircle(a: [i64; 2], b: [i64; 2], c: [i64; 2], d: [i64; 2]) -> i128 {
+    let (adx, ady) = ((a[0] - d[0]) as f64, (a[1] - d[1]) as f64);
+    let (bdx, bdy) = ((b[0] - d[0]) as f64, (b[1] - d[1]) as f64);
+    let (cdx, cdy) = ((c[0] - d[0]) as f64, (c[1] - d[1]) as f64);
+    let (bc, cb) = (bdx * cdy, cdx * bdy);
+    let (ca, ac) = (cdx * ady, adx * cdy);
+    let (ab, ba) = (adx * bdy, bdx * ady);
+    let al = adx * adx + ady * ady;
+    let bl = bdx * bdx + bdy * bdy;
+    let cl = cdx * cdx + cdy * cdy;
+    let det = al * (bc - cb) + bl * (ca - ac) + cl * (ab - ba);
+    let perm = (bc.abs() + cb.abs()) * al + (ca.abs() + ac.abs()) * bl + (ab.abs() + ba.abs()) * cl;
+    const EPS: f64 = f64::EPSILON / 2.0;
+    let bound = (10.0 + 96.0 * EPS) * EPS * perm;
+    if det > bound {
+        1
+    } else if -det > bound {
+        -1
+    } else {
+        incircle_exact(a, b, c, d)
+    }
+}
+
+/// [`incircle`] in exact integer arithmetic.
+pub fn incircle_exact(a: [i64; 2], b: [i64; 2], c: [i64; 2], d: [i64; 2]) -> i128 {
     let (adx, ady) = ((a[0] - d[0]) as i128, (a[1] - d[1]) as i128);
     let (bdx, bdy) = ((b[0] - d[0]) as i128, (b[1] - d[1]) as i128);
     let (cdx, cdy) = ((c[0] - d[0]) as i128, (c[1] - d[1]) as i128);
@@ -481,6 +506,32 @@ mod tests {
         check_delaunay(&tr);
         assert_eq!(tr.num_vertices(), 6);
         assert_eq!(tr.real_triangles().count(), 4);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+        #[test]
+        fn filtered_incircle_has_the_exact_sign(
+            a in (-300i64..300, -300i64..300), b in (-300i64..300, -300i64..300),
+            c in (-300i64..300, -300i64..300), d in (-300i64..300, -300i64..300),
+            big in proptest::bool::ANY,
+        ) {
+            let s = if big { 1 << 20 } else { 1 };
+            let p = |q: (i64, i64)| [q.0 * s + q.1, q.1 * s - q.0];
+            let (a, b, c, d) = (p(a), p(b), p(c), p(d));
+            prop_assert_eq!(incircle(a, b, c, d).signum(), incircle_exact(a, b, c, d).signum());
+        }
+    }
+
+    #[test]
+    fn cocircular_grid_points_are_exactly_on_the_circle() {
+        // The four corners of a square are co-circular: the filter must defer to exact math.
+        for s in [1i64, 7, 1 << 12, 1 << 22] {
+            assert_eq!(incircle([0, 0], [s, 0], [s, s], [0, s]), 0);
+            if s > 2 {
+                assert!(incircle([0, 0], [s, 0], [s, s], [1, 1]) > 0);
+            }
+        }
     }
 
     proptest! {

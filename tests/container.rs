@@ -3,7 +3,7 @@
 use proptest::prelude::*;
 use vtz::container::{self, Header, Section, SectionKind, SF_REQUIRED};
 use vtz::raster::{GeoKeys, ValueMapping};
-use vtz::{DecodeOptions, EncodeOptions, Error, ErrorBound, Georef, Limits, Raster, RasterType, SampleType};
+use vtz::{DecodeOptions, EncodeOptions, Error, ErrorBound, Georef, Limits, Method, Raster, RasterType, SampleType};
 
 /// A deterministic rough terrain with a nodata hole.
 fn terrain(w: usize, h: usize, st: SampleType, holes: bool) -> Raster {
@@ -76,7 +76,7 @@ fn lossy_bound_holds_and_integers_stay_integers() {
     for st in [SampleType::I16, SampleType::F32, SampleType::F64] {
         for e in [0.25, 0.5, 1.0, 3.7, 50.0] {
             let r = terrain(53, 47, st, true);
-            let opts = EncodeOptions { max_error: Some(ErrorBound::Abs(e)), ..Default::default() };
+            let opts = EncodeOptions { max_error: Some(ErrorBound::Abs(e)), method: Method::Grid, ..Default::default() };
             let (bytes, rep) = vtz::encode_report(&r, &opts).unwrap();
             let back = vtz::decode(&bytes).unwrap();
             let c = vtz::metrics::compare(&r, &back).unwrap();
@@ -97,7 +97,7 @@ fn lossy_bound_holds_and_integers_stay_integers() {
 fn percent_bound_is_of_the_value_range() {
     let r = terrain(40, 40, SampleType::F32, false);
     let (lo, hi) = r.valid_range().unwrap();
-    let opts = EncodeOptions { max_error: Some(ErrorBound::parse("1%").unwrap()), ..Default::default() };
+    let opts = EncodeOptions { max_error: Some(ErrorBound::parse("1%").unwrap()), method: Method::Grid, ..Default::default() };
     let back = vtz::decode(&vtz::encode(&r, &opts).unwrap()).unwrap();
     let c = vtz::metrics::compare(&r, &back).unwrap();
     assert!(c.max_error <= (hi - lo) * 0.01);
@@ -266,7 +266,7 @@ proptest! {
         let st = if float { SampleType::F32 } else { SampleType::I16 };
         let data: Vec<f64> = vals[..w * h].iter().map(|&v| if float { v as f32 as f64 } else { v.round() }).collect();
         let r = Raster::from_values(w, h, data, None, st).unwrap();
-        let opts = EncodeOptions { max_error: (e > 0.0).then_some(ErrorBound::Abs(e)), ..Default::default() };
+        let opts = EncodeOptions { max_error: (e > 0.0).then_some(ErrorBound::Abs(e)), method: Method::Grid, ..Default::default() };
         let bytes = vtz::encode(&r, &opts).unwrap();
         let back = vtz::decode(&bytes).unwrap();
         let again = vtz::decode(&bytes).unwrap();

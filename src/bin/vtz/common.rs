@@ -49,6 +49,33 @@ impl Ui {
     }
 }
 
+impl Ui {
+    /// Run `f` with a progress bar fed by its callback (fraction 0..1); shown after a second
+    /// on a terminal, hidden with --quiet.
+    pub fn progress<T>(&self, msg: &str, f: impl FnOnce(&mut dyn FnMut(f64)) -> T) -> T {
+        if self.quiet {
+            return f(&mut |_| {});
+        }
+        let pb = ProgressBar::with_draw_target(Some(1000), ProgressDrawTarget::hidden());
+        pb.set_style(
+            ProgressStyle::with_template("{msg} [{bar:30}] {percent}% {elapsed}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        pb.set_message(msg.to_string());
+        let start = std::time::Instant::now();
+        let mut shown = false;
+        let out = f(&mut |frac: f64| {
+            if !shown && start.elapsed() > Duration::from_secs(1) {
+                pb.set_draw_target(ProgressDrawTarget::stderr());
+                shown = true;
+            }
+            pb.set_position((frac.clamp(0.0, 1.0) * 1000.0) as u64);
+        });
+        pb.finish_and_clear();
+        out
+    }
+}
+
 /// Options shared by every command that reads or writes rasters.
 #[derive(clap::Args, Clone, Debug, Default)]
 pub struct RasterOpts {

@@ -17,6 +17,15 @@ pub struct Args {
     /// Decode this section (index from `vtz info`) instead of the primary one.
     #[arg(long, value_name = "N")]
     pub section: Option<usize>,
+    /// Sites section: decode only the first N sites (a coarser surface).
+    #[arg(long, value_name = "N")]
+    pub sites: Option<usize>,
+    /// Sites section: decode only the first K levels.
+    #[arg(long, value_name = "K")]
+    pub level: Option<usize>,
+    /// Decode only the window x,y,width,height (in samples).
+    #[arg(long, value_name = "X,Y,W,H")]
+    pub window: Option<String>,
     /// Replace an existing output file.
     #[arg(short, long)]
     pub force: bool,
@@ -30,6 +39,9 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let bytes = common::read_file(&a.input)?;
     let opts = DecodeOptions {
         section: a.section,
+        sites: a.sites,
+        levels: a.level,
+        window: a.window.as_deref().map(vtz::Window::parse).transpose()?,
         ..Default::default()
     };
     let raster = ui

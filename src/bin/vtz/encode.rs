@@ -15,8 +15,20 @@ pub struct Args {
     #[arg(long, value_name = "E", conflicts_with = "lossless")]
     pub max_error: Option<String>,
     /// Store every sample exactly (the default when no bound is given).
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["sites", "rmse"])]
     pub lossless: bool,
+    /// Sibson sites: stop at N sites (a coarser surface; the bound is what it achieves).
+    #[arg(long, value_name = "N")]
+    pub sites: Option<usize>,
+    /// Sibson sites: stop when the RMSE is at most E data units or E% of the range.
+    #[arg(long, value_name = "E")]
+    pub rmse: Option<String>,
+    /// Representation: best (smallest that meets the request), sibson, grid.
+    #[arg(long, default_value = "best")]
+    pub method: String,
+    /// Sibson refinement norm: linf (worst sample) or l2 (worst tile by RMS).
+    #[arg(long, default_value = "linf")]
+    pub norm: String,
     /// Input format, when the extension does not tell (tif, png, terrain-rgb, exr, hgt, asc, f32).
     #[arg(long, value_name = "FMT")]
     pub format: Option<String>,
@@ -45,11 +57,20 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         )));
     }
     let raster = ui.busy("reading", || common::read_raster(&a.input, format, &a.raster))?;
+    let norm = match a.norm.to_ascii_lowercase().as_str() {
+        "linf" | "max" => vtz::sites::Norm::Linf,
+        "l2" | "rms" => vtz::sites::Norm::L2,
+        o => return Err(vtz::Error::invalid(format!("unknown norm '{o}' (linf, l2)"))),
+    };
     let opts = EncodeOptions {
         max_error: bound,
+        rmse: a.rmse.as_deref().map(ErrorBound::parse).transpose()?,
+        sites: a.sites,
+        norm,
+        method: vtz::Method::parse(&a.method)?,
         ..Default::default()
     };
-    let (bytes, report) = ui.busy("encoding", || vtz::encode_report(&raster, &opts))?;
+    let (bytes, report) = ui.progress("encoding", |p| vtz::encode_progress(&raster, &opts, p))?;
     let n = bytes.len() as u64;
     vtz::fsio::write_file(&output, bytes, a.force)?;
     let bps = vtz::metrics::bits_per_sample(n, raster.len());
@@ -66,13 +87,19 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             "ratio": raster.sample_type.bits() as f64 / bps.max(f64::MIN_POSITIVE),
             "max_error": report.max_error, "max_error_pct": pct,
             "lossless": report.max_error == 0.0,
+            "method": format!("{:?}", report.method).to_lowercase(),
+            "sites": report.sites.as_ref().map(|s| s.sites),
         });
         println!("{j}");
     } else {
-        let what = if report.max_error == 0.0 {
+        let what = if report.max_error == 0.0 && report.sites.is_none() {
             "lossless".to_string()
         } else {
             format!("max error ≤ {} ({pct:.3} % of range)", report.max_error)
+        };
+        let what = match &report.sites {
+            Some(s) => format!("{what}, {} sites in {} levels", s.sites, s.levels.len()),
+            None => format!("{what}, grid"),
         };
         ui.say(format!(
             "{}: {n} bytes, {bps:.3} bits/sample ({:.1}:1 against {}), {what}",

@@ -1,0 +1,82 @@
+//! Golden files: one `.vtz` per format version (and representation), decoded forever.
+//!
+//! Each `tests/golden/NAME.vtz` decodes to exactly `NAME.expected.f32` (little-endian f32,
+//! nodata samples hold the header's nodata value). Regenerate only deliberately, for a new
+//! format version: `VTZ_BLESS_GOLDEN=1 cargo test --test golden` writes files that are
+//! missing; existing golden files are never rewritten.
+
+use std::path::{Path, PathBuf};
+use vtz::{EncodeOptions, ErrorBound, Method, Window};
+
+fn dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden")
+}
+
+/// The source of every golden file: a 64×48 window of the Kauai SRTM tile with voids.
+fn source() -> vtz::Raster {
+    let tile = Path::new(env!("CARGO_MANIFEST_DIR")).join("corpus/srtm3_N22W160_kauai.hgt");
+    let bytes = vtz::encode(&vtz::raster::read_path(&tile, &Default::default()).unwrap(), &EncodeOptions::default()).unwrap();
+    let opts = vtz::DecodeOptions { window: Some(Window { x: 448, y: 960, width: 64, height: 48 }), ..Default::default() };
+    vtz::decode_with(&bytes, &opts).unwrap()
+}
+
+fn cases() -> Vec<(&'static str, EncodeOptions)> {
+    vec![
+        ("v1_kauai_crop_grid", EncodeOptions { method: Method::Grid, ..Default::default() }),
+        (
+            "v1_kauai_crop_sites",
+            EncodeOptions { method: Method::Sibson, max_error: Some(ErrorBound::Abs(8.0)), ..Default::default() },
+        ),
+    ]
+}
+
+fn as_f32_bytes(r: &vtz::Raster) -> Vec<u8> {
+    let fill = r.nodata.unwrap_or(f64::NAN);
+    (0..r.len())
+        .flat_map(|i| (if r.is_valid(i) { r.data[i] } else { fill } as f32).to_le_bytes())
+        .collect()
+}
+
+#[test]
+fn golden_files_decode_to_their_expected_samples() {
+    let bless = std::env::var_os("VTZ_BLESS_GOLDEN").is_some();
+    for (name, opts) in cases() {
+        let vtz_path = dir().join(format!("{name}.vtz"));
+        let exp_path = dir().join(format!("{name}.expected.f32"));
+        if !vtz_path.exists() {
+            assert!(bless, "{} is missing (VTZ_BLESS_GOLDEN=1 writes it)", vtz_path.display());
+            let src = source();
+            let bytes = vtz::encode(&src, &opts).unwrap();
+            std::fs::write(&vtz_path, &bytes).unwrap();
+            std::fs::write(&exp_path, as_f32_bytes(&vtz::decode(&bytes).unwrap())).unwrap();
+        }
+        let bytes = std::fs::read(&vtz_path).unwrap();
+        let r = vtz::decode(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!((r.width, r.height), (64, 48), "{name}");
+        assert_eq!(r.nodata, Some(-32768.0), "{name}");
+        assert_eq!(r.sample_type, vtz::SampleType::I16, "{name}");
+        let g = r.georef.as_ref().expect("georef");
+        assert_eq!(g.epsg, Some(4326));
+        assert!(r.valid_count() < r.len(), "{name}: the crop has voids");
+        let expected = std::fs::read(&exp_path).unwrap();
+        assert!(as_f32_bytes(&r) == expected, "{name}: decoded samples differ from {}", exp_path.display());
+        // And the decode is within the bound it claims, against the source window.
+        let c = vtz::metrics::compare(&source(), &r).unwrap();
+        assert_eq!((c.lost, c.invented), (0, 0));
+        if name.ends_with("grid") {
+            assert!(c.identical);
+        } else {
+            assert!(c.max_error <= 8.0, "{name}: {}", c.max_error);
+        }
+    }
+}
+
+#[test]
+fn every_proper_prefix_of_the_golden_files_is_rejected() {
+    for (name, _) in cases() {
+        let bytes = std::fs::read(dir().join(format!("{name}.vtz"))).unwrap();
+        for n in 0..bytes.len() {
+            assert!(vtz::decode(&bytes[..n]).is_err(), "{name}: prefix of {n} bytes decoded");
+        }
+    }
+}
