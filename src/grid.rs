@@ -4,8 +4,8 @@
 //! This is vtz's simplest representation: exact for lossless, and a hard max-error bound
 //! for lossy (closed loop: the encoder checks every sample as the decoder reconstructs it).
 
-use crate::container::bytes::{ByteReader, PutLe};
 use crate::container::Header;
+use crate::container::bytes::{ByteReader, PutLe};
 use crate::entropy::{self, varint};
 use crate::error::{Error, Result};
 use crate::raster::{Raster, SampleType};
@@ -33,7 +33,9 @@ fn f32_key(v: f32) -> i64 {
 }
 fn f32_from_key(k: i64) -> Option<f32> {
     let b = i32::try_from(k).ok()?;
-    Some(f32::from_bits((if b < 0 { b ^ i32::MAX } else { b }) as u32))
+    Some(f32::from_bits(
+        (if b < 0 { b ^ i32::MAX } else { b }) as u32,
+    ))
 }
 fn f64_key(v: f64) -> i64 {
     let b = v.to_bits() as i64;
@@ -100,7 +102,7 @@ fn int_codes(r: &Raster, dq: Dequant, tol: f64) -> Option<Vec<i64>> {
             continue;
         }
         let q = ((v - dq.offset) / dq.step).round();
-        if !(q.abs() <= MAX_CODE) {
+        if q.is_nan() || q.abs() > MAX_CODE {
             return None;
         }
         let q = q as i64;
@@ -260,9 +262,7 @@ pub fn decode(payload: &[u8], header: &Header, mask: Option<&[bool]>) -> Result<
     let n = header.samples() as usize;
     let mask_valid = mask.map_or(n, |m| m.iter().filter(|&&b| b).count());
     if valid != mask_valid as u64 {
-        return Err(r.corrupt(format!(
-            "holds {valid} samples, the mask says {mask_valid}"
-        )));
+        return Err(r.corrupt(format!("holds {valid} samples, the mask says {mask_valid}")));
     }
     let rest = r.take(r.remaining(), "residuals")?;
     let stream = entropy::inflate(rest, mask_valid.saturating_mul(10), "grid section")?;
@@ -286,7 +286,9 @@ pub fn decode(payload: &[u8], header: &Header, mask: Option<&[bool]>) -> Result<
             let c = p.wrapping_add(vr.i64()?);
             codes[i] = c;
             out[i] = dq.value(c).ok_or_else(|| {
-                Error::corrupt(format!("grid section: sample {i} decodes to a non-finite value"))
+                Error::corrupt(format!(
+                    "grid section: sample {i} decodes to a non-finite value"
+                ))
             })?;
         } else {
             codes[i] = p;

@@ -20,6 +20,7 @@ pub mod fsio;
 pub mod grid;
 pub mod metrics;
 pub mod raster;
+pub mod render;
 pub mod sibson;
 pub mod sites;
 pub mod triangulation;
@@ -28,7 +29,7 @@ pub use container::Limits;
 pub use error::{Error, Result};
 pub use raster::{Format, Georef, Raster, RasterType, SampleType};
 
-use container::{Header, Section, SectionKind, SF_REQUIRED};
+use container::{Header, SF_REQUIRED, Section, SectionKind};
 
 /// A max-error bound as the user gives it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -87,7 +88,11 @@ impl Method {
             "best" => Method::Best,
             "sibson" | "sites" => Method::Sibson,
             "grid" => Method::Grid,
-            o => return Err(Error::invalid(format!("unknown method '{o}' (best, sibson, grid)"))),
+            o => {
+                return Err(Error::invalid(format!(
+                    "unknown method '{o}' (best, sibson, grid)"
+                )));
+            }
         })
     }
 }
@@ -127,8 +132,15 @@ impl Window {
             .collect::<std::result::Result<_, _>>()
             .map_err(|_| Error::invalid(format!("window '{s}' is not x,y,width,height")))?;
         match v[..] {
-            [x, y, width, height] => Ok(Window { x, y, width, height }),
-            _ => Err(Error::invalid(format!("window '{s}' is not x,y,width,height"))),
+            [x, y, width, height] => Ok(Window {
+                x,
+                y,
+                width,
+                height,
+            }),
+            _ => Err(Error::invalid(format!(
+                "window '{s}' is not x,y,width,height"
+            ))),
         }
     }
 }
@@ -229,7 +241,12 @@ pub fn encode_progress(
         best = Some((SectionKind::Sites, payload, stats.max_error, Some(stats)));
     }
     if try_grid {
-        let (g, bound) = grid::encode(raster, &grid::GridParams { max_error: e.unwrap_or(0.0) })?;
+        let (g, bound) = grid::encode(
+            raster,
+            &grid::GridParams {
+                max_error: e.unwrap_or(0.0),
+            },
+        )?;
         if best.as_ref().is_none_or(|b| g.len() < b.1.len()) {
             best = Some((SectionKind::Grid, g, bound, None));
         }
@@ -264,7 +281,11 @@ pub fn encode_progress(
         container::write(&header, &sections),
         EncodeReport {
             max_error: bound,
-            method: if kind == SectionKind::Sites { Method::Sibson } else { Method::Grid },
+            method: if kind == SectionKind::Sites {
+                Method::Sibson
+            } else {
+                Method::Grid
+            },
             sites: stats,
         },
     ))
@@ -291,7 +312,12 @@ pub fn decode_with(bytes: &[u8], opts: &DecodeOptions) -> Result<Raster> {
         .ok_or_else(|| Error::invalid(format!("the file has no section {idx}")))?
         .clone();
     let (w, h) = (header.width as usize, header.height as usize);
-    let win = opts.window.unwrap_or(Window { x: 0, y: 0, width: w, height: h });
+    let win = opts.window.unwrap_or(Window {
+        x: 0,
+        y: 0,
+        width: w,
+        height: h,
+    });
     if win.width == 0
         || win.height == 0
         || win.x.checked_add(win.width).is_none_or(|e| e > w)
@@ -314,8 +340,14 @@ pub fn decode_with(bytes: &[u8], opts: &DecodeOptions) -> Result<Raster> {
             crop(&full, w, win)
         }
         SectionKind::Sites => {
-            let d = sites::decode_sites(&payload, &header, mask.as_deref(), opts.levels, opts.sites)?;
-            sites::render(&d, &header, mask.as_deref(), (win.x, win.y, win.width, win.height))?
+            let d =
+                sites::decode_sites(&payload, &header, mask.as_deref(), opts.levels, opts.sites)?;
+            sites::render(
+                &d,
+                &header,
+                mask.as_deref(),
+                (win.x, win.y, win.width, win.height),
+            )?
         }
         k => {
             return Err(Error::unsupported(format!(

@@ -147,7 +147,12 @@ impl Surface {
             }
         }
         // Boundary cycle from its lowest vertex id, counter-clockwise around p.
-        let start = s.bnd.iter().map(|e| e.0).min().expect("cavity has a boundary");
+        let start = s
+            .bnd
+            .iter()
+            .map(|e| e.0)
+            .min()
+            .expect("cavity has a boundary");
         s.cycle.clear();
         let mut cur = start;
         loop {
@@ -185,7 +190,10 @@ impl Surface {
                 let ci = s.cavity.iter().position(|&c| c == ct).expect("in cavity");
                 s.poly.push(s.centres[ci]);
                 let tr = tri.tri(ct);
-                let kv = tr.v.iter().position(|&v| v == vi).expect("vertex of triangle");
+                let kv =
+                    tr.v.iter()
+                        .position(|&v| v == vi)
+                        .expect("vertex of triangle");
                 let nb = tr.n[(kv + 1) % 3];
                 if !s.cavity.contains(&nb) {
                     break;
@@ -221,7 +229,8 @@ impl Surface {
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     if want(x, y) {
-                        out[((y - y0) as usize) * w + (x - x0) as usize] = self.eval_collinear([x, y])?;
+                        out[((y - y0) as usize) * w + (x - x0) as usize] =
+                            self.eval_collinear([x, y])?;
                     }
                 }
             }
@@ -327,7 +336,9 @@ mod tests {
     }
 
     fn lcg(seed: &mut u64) -> u64 {
-        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         *seed >> 33
     }
 
@@ -335,7 +346,10 @@ mod tests {
         let mut s = seed;
         let mut pts = vec![[0, 0], [w, 0], [w, h], [0, h]];
         while pts.len() < n {
-            let p = [(lcg(&mut s) % (w as u64 + 1)) as i64, (lcg(&mut s) % (h as u64 + 1)) as i64];
+            let p = [
+                (lcg(&mut s) % (w as u64 + 1)) as i64,
+                (lcg(&mut s) % (h as u64 + 1)) as i64,
+            ];
             if !pts.contains(&p) {
                 pts.push(p);
             }
@@ -354,7 +368,11 @@ mod tests {
             for y in 0..=40 {
                 for x in 0..=50 {
                     let v = s.eval([x, y], &mut hint, &mut sc).unwrap();
-                    assert!((v - f([x, y])).abs() < 1e-9, "({x},{y}): {v} vs {}", f([x, y]));
+                    assert!(
+                        (v - f([x, y])).abs() < 1e-9,
+                        "({x},{y}): {v} vs {}",
+                        f([x, y])
+                    );
                 }
             }
         }
@@ -364,7 +382,9 @@ mod tests {
     fn interpolates_sites_and_stays_within_their_range() {
         let pts = random_sites(80, 30, 30, 7);
         let mut seed = 99;
-        let hs: Vec<f64> = (0..pts.len()).map(|_| (lcg(&mut seed) % 1000) as f64).collect();
+        let hs: Vec<f64> = (0..pts.len())
+            .map(|_| (lcg(&mut seed) % 1000) as f64)
+            .collect();
         let mut s = Surface::new();
         for (p, h) in pts.iter().zip(&hs) {
             s.insert(*p, *h).unwrap();
@@ -414,7 +434,9 @@ mod tests {
         }
         let pts = random_sites(150, 64, 48, 11);
         let mut seed = 17;
-        let hs: Vec<f64> = (0..pts.len()).map(|_| (lcg(&mut seed) % 3000) as f64 * 0.1).collect();
+        let hs: Vec<f64> = (0..pts.len())
+            .map(|_| (lcg(&mut seed) % 3000) as f64 * 0.1)
+            .collect();
         let mut ours = Surface::new();
         let mut theirs: DelaunayTriangulation<Ph> = DelaunayTriangulation::new();
         for (p, h) in pts.iter().zip(&hs) {
@@ -449,10 +471,16 @@ mod tests {
         for y in 0..34 {
             for x in 0..46 {
                 let v = s.eval([x, y], &mut hint, &mut sc).unwrap();
-                assert_eq!(v.to_bits(), full[(y * 46 + x) as usize].to_bits(), "({x},{y})");
+                assert_eq!(
+                    v.to_bits(),
+                    full[(y * 46 + x) as usize].to_bits(),
+                    "({x},{y})"
+                );
             }
         }
-        let win = s.eval_window(7, 5, 20, 11, |x, y| (x + y) % 5 != 0).unwrap();
+        let win = s
+            .eval_window(7, 5, 20, 11, |x, y| (x + y) % 5 != 0)
+            .unwrap();
         for y in 0..11 {
             for x in 0..20 {
                 let v = win[y * 20 + x];
@@ -464,7 +492,10 @@ mod tests {
                 }
             }
         }
-        assert!(s.eval_window(0, 0, 47, 34, |_, _| true).is_none(), "outside the hull");
+        assert!(
+            s.eval_window(0, 0, 47, 34, |_, _| true).is_none(),
+            "outside the hull"
+        );
     }
 
     #[test]

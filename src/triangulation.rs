@@ -52,9 +52,9 @@ pub fn orient(a: [i64; 2], b: [i64; 2], c: [i64; 2]) -> i64 {
     (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
 }
 
-/// > 0 when `d` is strictly inside the circumcircle of the counter-clockwise (a, b, c),
-/// 0 on it, < 0 outside. Exact: a floating-point evaluation decides when its error bound
-/// (Shewchuk's `iccerrboundA`) allows, else exact `i128` arithmetic; only the sign is used.
+/// Positive when `d` is strictly inside the circumcircle of the counter-clockwise (a, b, c),
+/// zero on it, negative outside. Exact: a floating-point evaluation decides when its error
+/// bound (Shewchuk's `iccerrboundA`) allows, else exact `i128` arithmetic; use the sign only.
 #[inline]
 pub fn incircle(a: [i64; 2], b: [i64; 2], c: [i64; 2], d: [i64; 2]) -> i128 {
     let (adx, ady) = ((a[0] - d[0]) as f64, (a[1] - d[1]) as f64);

@@ -40,9 +40,19 @@ fn lossless_encode_decode_compare() {
     let back = tmp(&d, "crater.tif");
     let o = vtz(&["decode", &out, "-o", &back, "-q"]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let c = json(&vtz(&["compare", &corpus("scape_crater.png"), &back, "--json"]));
+    let c = json(&vtz(&[
+        "compare",
+        &corpus("scape_crater.png"),
+        &back,
+        "--json",
+    ]));
     assert_eq!(c["identical"], true);
-    let c = json(&vtz(&["compare", &corpus("scape_crater.png"), &out, "--json"]));
+    let c = json(&vtz(&[
+        "compare",
+        &corpus("scape_crater.png"),
+        &out,
+        "--json",
+    ]));
     assert_eq!(c["identical"], true);
     assert!(c["bits_per_sample"].as_f64().unwrap() > 0.5);
 }
@@ -52,7 +62,17 @@ fn bounded_encode_meets_percent_bound_and_info_lists_sections() {
     let d = tempfile::tempdir().unwrap();
     let out = tmp(&d, "kauai.vtz");
     let src = corpus("srtm3_N22W160_kauai.hgt");
-    let e = json(&vtz(&["encode", &src, "-o", &out, "--max-error", "1%", "--method", "grid", "--json"]));
+    let e = json(&vtz(&[
+        "encode",
+        &src,
+        "-o",
+        &out,
+        "--max-error",
+        "1%",
+        "--method",
+        "grid",
+        "--json",
+    ]));
     assert!(e["max_error_pct"].as_f64().unwrap() <= 1.0);
     let c = json(&vtz(&["compare", &src, &out, "--json"]));
     assert!(c["max_error_pct"].as_f64().unwrap() <= 1.0, "{c}");
@@ -63,7 +83,12 @@ fn bounded_encode_meets_percent_bound_and_info_lists_sections() {
     assert_eq!(i["sample_type"], "i16");
     assert_eq!(i["nodata"], -32768.0);
     assert_eq!(i["georef"]["epsg"], 4326);
-    let kinds: Vec<_> = i["sections"].as_array().unwrap().iter().map(|s| s["type"].as_str().unwrap().to_string()).collect();
+    let kinds: Vec<_> = i["sections"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["type"].as_str().unwrap().to_string())
+        .collect();
     assert_eq!(kinds, ["mask", "grid"]);
     let o = vtz(&["info", &out]);
     assert!(o.status.success());
@@ -79,7 +104,14 @@ fn existing_output_is_not_overwritten_without_force() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("--force"));
     assert_eq!(std::fs::read(&out).unwrap(), b"keep me");
-    let o = vtz(&["encode", &corpus("scape_crater.png"), "-o", &out, "--force", "-q"]);
+    let o = vtz(&[
+        "encode",
+        &corpus("scape_crater.png"),
+        "-o",
+        &out,
+        "--force",
+        "-q",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_ne!(std::fs::read(&out).unwrap(), b"keep me");
 }
@@ -88,7 +120,17 @@ fn existing_output_is_not_overwritten_without_force() {
 fn corrupt_input_gives_one_line_error_and_no_output() {
     let d = tempfile::tempdir().unwrap();
     let good = tmp(&d, "good.vtz");
-    assert!(vtz(&["encode", &corpus("nasadem_west_bijou_escarpment_landlab.asc"), "-o", &good, "-q"]).status.success());
+    assert!(
+        vtz(&[
+            "encode",
+            &corpus("nasadem_west_bijou_escarpment_landlab.asc"),
+            "-o",
+            &good,
+            "-q"
+        ])
+        .status
+        .success()
+    );
     let bytes = std::fs::read(&good).unwrap();
     let bad = tmp(&d, "bad.vtz");
     std::fs::write(&bad, &bytes[..bytes.len() - 3]).unwrap();
@@ -100,7 +142,10 @@ fn corrupt_input_gives_one_line_error_and_no_output() {
     assert!(err.contains("truncated"), "{err}");
     assert!(!Path::new(&out).exists());
     // Nothing else (no temporary file) was left behind.
-    let names: Vec<PathBuf> = std::fs::read_dir(d.path()).unwrap().map(|e| e.unwrap().path()).collect();
+    let names: Vec<PathBuf> = std::fs::read_dir(d.path())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
     assert_eq!(names.len(), 2, "{names:?}");
 }
 
@@ -109,16 +154,33 @@ fn usage_errors_exit_2() {
     let d = tempfile::tempdir().unwrap();
     let out = tmp(&d, "x.vtz");
     assert_eq!(vtz(&["encode"]).status.code(), Some(2));
-    let o = vtz(&["encode", &corpus("scape_crater.png"), "-o", &out, "--max-error", "-3"]);
+    let o = vtz(&[
+        "encode",
+        &corpus("scape_crater.png"),
+        "-o",
+        &out,
+        "--max-error",
+        "-3",
+    ]);
     assert_eq!(o.status.code(), Some(2));
-    let o = vtz(&["encode", &corpus("scape_crater.png"), "-o", &out, "--format", "bmp"]);
+    let o = vtz(&[
+        "encode",
+        &corpus("scape_crater.png"),
+        "-o",
+        &out,
+        "--format",
+        "bmp",
+    ]);
     assert_eq!(o.status.code(), Some(2));
     // Output onto the input is refused.
     let src = tmp(&d, "a.asc");
     std::fs::copy(corpus("nasadem_west_bijou_escarpment_landlab.asc"), &src).unwrap();
     let o = vtz(&["convert", &src, &src, "--force"]);
     assert_eq!(o.status.code(), Some(2));
-    assert_eq!(std::fs::read(&src).unwrap(), std::fs::read(corpus("nasadem_west_bijou_escarpment_landlab.asc")).unwrap());
+    assert_eq!(
+        std::fs::read(&src).unwrap(),
+        std::fs::read(corpus("nasadem_west_bijou_escarpment_landlab.asc")).unwrap()
+    );
 }
 
 #[test]

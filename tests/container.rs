@@ -1,9 +1,12 @@
 //! Container and grid-section tests: round trips, bounds, truncation, corruption, garbage.
 
 use proptest::prelude::*;
-use vtz::container::{self, Header, Section, SectionKind, SF_REQUIRED};
+use vtz::container::{self, Header, SF_REQUIRED, Section, SectionKind};
 use vtz::raster::{GeoKeys, ValueMapping};
-use vtz::{DecodeOptions, EncodeOptions, Error, ErrorBound, Georef, Limits, Method, Raster, RasterType, SampleType};
+use vtz::{
+    DecodeOptions, EncodeOptions, Error, ErrorBound, Georef, Limits, Method, Raster, RasterType,
+    SampleType,
+};
 
 /// A deterministic rough terrain with a nodata hole.
 fn terrain(w: usize, h: usize, st: SampleType, holes: bool) -> Raster {
@@ -11,7 +14,9 @@ fn terrain(w: usize, h: usize, st: SampleType, holes: bool) -> Raster {
     let mut s: u64 = 12345;
     for y in 0..h {
         for x in 0..w {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             let noise = ((s >> 33) % 7) as f64 - 3.0;
             let v = 500.0 + 80.0 * ((x as f64) * 0.07).sin() * ((y as f64) * 0.05).cos() + noise;
             data.push(match st {
@@ -61,7 +66,13 @@ fn assert_bits_equal(a: &Raster, b: &Raster) {
 
 #[test]
 fn lossless_round_trip_every_sample_type() {
-    for st in [SampleType::I16, SampleType::U16, SampleType::I32, SampleType::F32, SampleType::F64] {
+    for st in [
+        SampleType::I16,
+        SampleType::U16,
+        SampleType::I32,
+        SampleType::F32,
+        SampleType::F64,
+    ] {
         for holes in [false, true] {
             let r = terrain(67, 41, st, holes);
             let bytes = vtz::encode(&r, &EncodeOptions::default()).unwrap();
@@ -76,7 +87,11 @@ fn lossy_bound_holds_and_integers_stay_integers() {
     for st in [SampleType::I16, SampleType::F32, SampleType::F64] {
         for e in [0.25, 0.5, 1.0, 3.7, 50.0] {
             let r = terrain(53, 47, st, true);
-            let opts = EncodeOptions { max_error: Some(ErrorBound::Abs(e)), method: Method::Grid, ..Default::default() };
+            let opts = EncodeOptions {
+                max_error: Some(ErrorBound::Abs(e)),
+                method: Method::Grid,
+                ..Default::default()
+            };
             let (bytes, rep) = vtz::encode_report(&r, &opts).unwrap();
             let back = vtz::decode(&bytes).unwrap();
             let c = vtz::metrics::compare(&r, &back).unwrap();
@@ -84,10 +99,19 @@ fn lossy_bound_holds_and_integers_stay_integers() {
             assert!(rep.max_error <= e);
             assert_eq!(back.mask, r.mask);
             if st.is_integer() {
-                assert!(back.data.iter().enumerate().all(|(i, v)| !back.is_valid(i) || v.fract() == 0.0));
+                assert!(
+                    back.data
+                        .iter()
+                        .enumerate()
+                        .all(|(i, v)| !back.is_valid(i) || v.fract() == 0.0)
+                );
             }
             if st == SampleType::F32 {
-                assert!(back.data.iter().all(|&v| v.is_nan() || v as f32 as f64 == v));
+                assert!(
+                    back.data
+                        .iter()
+                        .all(|&v| v.is_nan() || v as f32 as f64 == v)
+                );
             }
         }
     }
@@ -97,7 +121,11 @@ fn lossy_bound_holds_and_integers_stay_integers() {
 fn percent_bound_is_of_the_value_range() {
     let r = terrain(40, 40, SampleType::F32, false);
     let (lo, hi) = r.valid_range().unwrap();
-    let opts = EncodeOptions { max_error: Some(ErrorBound::parse("1%").unwrap()), method: Method::Grid, ..Default::default() };
+    let opts = EncodeOptions {
+        max_error: Some(ErrorBound::parse("1%").unwrap()),
+        method: Method::Grid,
+        ..Default::default()
+    };
     let back = vtz::decode(&vtz::encode(&r, &opts).unwrap()).unwrap();
     let c = vtz::metrics::compare(&r, &back).unwrap();
     assert!(c.max_error <= (hi - lo) * 0.01);
@@ -107,9 +135,15 @@ fn percent_bound_is_of_the_value_range() {
 #[test]
 fn error_bound_parsing() {
     assert_eq!(ErrorBound::parse("2.5").unwrap(), ErrorBound::Abs(2.5));
-    assert_eq!(ErrorBound::parse("1%").unwrap(), ErrorBound::PercentOfRange(1.0));
+    assert_eq!(
+        ErrorBound::parse("1%").unwrap(),
+        ErrorBound::PercentOfRange(1.0)
+    );
     for bad in ["", "-1", "abc", "1%%", "nan", "inf"] {
-        assert!(matches!(ErrorBound::parse(bad), Err(Error::InvalidArgument { .. })), "{bad}");
+        assert!(
+            matches!(ErrorBound::parse(bad), Err(Error::InvalidArgument { .. })),
+            "{bad}"
+        );
     }
 }
 
@@ -119,7 +153,14 @@ fn all_nodata_and_tiny_rasters() {
     let back = vtz::decode(&vtz::encode(&r, &EncodeOptions::default()).unwrap()).unwrap();
     assert_eq!(back.valid_count(), 0);
     for (w, h) in [(1, 1), (1, 9), (9, 1), (2, 2)] {
-        let r = Raster::from_values(w, h, (0..w * h).map(|i| i as f64 * 3.0).collect(), None, SampleType::I16).unwrap();
+        let r = Raster::from_values(
+            w,
+            h,
+            (0..w * h).map(|i| i as f64 * 3.0).collect(),
+            None,
+            SampleType::I16,
+        )
+        .unwrap();
         let back = vtz::decode(&vtz::encode(&r, &EncodeOptions::default()).unwrap()).unwrap();
         assert_bits_equal(&r, &back);
     }
@@ -128,7 +169,14 @@ fn all_nodata_and_tiny_rasters() {
 #[test]
 fn every_proper_prefix_is_an_error() {
     let r = terrain(23, 19, SampleType::F32, true);
-    let bytes = vtz::encode(&r, &EncodeOptions { metadata: Some("{\"a\":1}".into()), ..Default::default() }).unwrap();
+    let bytes = vtz::encode(
+        &r,
+        &EncodeOptions {
+            metadata: Some("{\"a\":1}".into()),
+            ..Default::default()
+        },
+    )
+    .unwrap();
     for n in 0..bytes.len() {
         match vtz::decode(&bytes[..n]) {
             Err(Error::Corrupt { .. }) => {}
@@ -147,7 +195,10 @@ fn every_single_byte_flip_is_detected() {
         for mask in [0x01u8, 0x80, 0xff] {
             let mut b = bytes.clone();
             b[i] ^= mask;
-            assert!(vtz::decode(&b).is_err(), "flip {mask:#x} at byte {i} was not detected");
+            assert!(
+                vtz::decode(&b).is_err(),
+                "flip {mask:#x} at byte {i} was not detected"
+            );
         }
     }
 }
@@ -180,25 +231,54 @@ fn unknown_sections_are_skipped_unless_required() {
     let r = terrain(10, 10, SampleType::I16, false);
     let bytes = vtz::encode(&r, &EncodeOptions::default()).unwrap();
     let mut c = container::read(&bytes, Limits::default()).unwrap();
-    c.sections.push(Section { kind: SectionKind::Unknown(900), flags: 0, payload: vec![1, 2, 3] });
+    c.sections.push(Section {
+        kind: SectionKind::Unknown(900),
+        flags: 0,
+        payload: vec![1, 2, 3],
+    });
     let with_optional = container::write(&c.header, &c.sections);
     assert_bits_equal(&r, &vtz::decode(&with_optional).unwrap());
     c.sections.last_mut().unwrap().flags = SF_REQUIRED;
     let with_required = container::write(&c.header, &c.sections);
-    assert!(matches!(vtz::decode(&with_required), Err(Error::Unsupported { .. })));
+    assert!(matches!(
+        vtz::decode(&with_required),
+        Err(Error::Unsupported { .. })
+    ));
     c.sections.last_mut().unwrap().flags = 0x8000;
-    assert!(matches!(vtz::decode(&container::write(&c.header, &c.sections)), Err(Error::Unsupported { .. })));
+    assert!(matches!(
+        vtz::decode(&container::write(&c.header, &c.sections)),
+        Err(Error::Unsupported { .. })
+    ));
 }
 
 #[test]
 fn absurd_sizes_hit_limits_without_allocating() {
     let h = header(2_000_000_000, 2_000_000_000);
-    let bytes = container::write(&h, &[Section { kind: SectionKind::Grid, flags: SF_REQUIRED, payload: vec![] }]);
-    assert!(matches!(vtz::decode(&bytes), Err(Error::LimitExceeded { .. })));
-    let small = DecodeOptions { limits: Limits { max_samples: 50, ..Default::default() }, ..Default::default() };
+    let bytes = container::write(
+        &h,
+        &[Section {
+            kind: SectionKind::Grid,
+            flags: SF_REQUIRED,
+            payload: vec![],
+        }],
+    );
+    assert!(matches!(
+        vtz::decode(&bytes),
+        Err(Error::LimitExceeded { .. })
+    ));
+    let small = DecodeOptions {
+        limits: Limits {
+            max_samples: 50,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
     let r = terrain(10, 10, SampleType::I16, false);
     let bytes = vtz::encode(&r, &EncodeOptions::default()).unwrap();
-    assert!(matches!(vtz::decode_with(&bytes, &small), Err(Error::LimitExceeded { .. })));
+    assert!(matches!(
+        vtz::decode_with(&bytes, &small),
+        Err(Error::LimitExceeded { .. })
+    ));
 }
 
 #[test]
@@ -207,11 +287,21 @@ fn out_of_range_header_fields_are_rejected() {
     let body = good.to_bytes();
     // sample type 9, unknown flag bit, zero scale, min > max
     let mut cases = Vec::new();
-    let mut b = body.clone(); b[8] = 9; cases.push(b);
-    let mut b = body.clone(); b[9] |= 0x80; cases.push(b);
-    let mut b = body.clone(); b[12..20].copy_from_slice(&0f64.to_le_bytes()); cases.push(b);
-    let mut b = body.clone(); b[28..36].copy_from_slice(&5f64.to_le_bytes()); cases.push(b);
-    let mut b = body.clone(); b[0..4].copy_from_slice(&0u32.to_le_bytes()); cases.push(b);
+    let mut b = body.clone();
+    b[8] = 9;
+    cases.push(b);
+    let mut b = body.clone();
+    b[9] |= 0x80;
+    cases.push(b);
+    let mut b = body.clone();
+    b[12..20].copy_from_slice(&0f64.to_le_bytes());
+    cases.push(b);
+    let mut b = body.clone();
+    b[28..36].copy_from_slice(&5f64.to_le_bytes());
+    cases.push(b);
+    let mut b = body.clone();
+    b[0..4].copy_from_slice(&0u32.to_le_bytes());
+    cases.push(b);
     for (k, b) in cases.iter().enumerate() {
         assert!(Header::from_bytes(b).is_err(), "case {k}");
     }

@@ -15,17 +15,39 @@ fn dir() -> PathBuf {
 /// The source of every golden file: a 64×48 window of the Kauai SRTM tile with voids.
 fn source() -> vtz::Raster {
     let tile = Path::new(env!("CARGO_MANIFEST_DIR")).join("corpus/srtm3_N22W160_kauai.hgt");
-    let bytes = vtz::encode(&vtz::raster::read_path(&tile, &Default::default()).unwrap(), &EncodeOptions::default()).unwrap();
-    let opts = vtz::DecodeOptions { window: Some(Window { x: 448, y: 960, width: 64, height: 48 }), ..Default::default() };
+    let bytes = vtz::encode(
+        &vtz::raster::read_path(&tile, &Default::default()).unwrap(),
+        &EncodeOptions::default(),
+    )
+    .unwrap();
+    let opts = vtz::DecodeOptions {
+        window: Some(Window {
+            x: 448,
+            y: 960,
+            width: 64,
+            height: 48,
+        }),
+        ..Default::default()
+    };
     vtz::decode_with(&bytes, &opts).unwrap()
 }
 
 fn cases() -> Vec<(&'static str, EncodeOptions)> {
     vec![
-        ("v1_kauai_crop_grid", EncodeOptions { method: Method::Grid, ..Default::default() }),
+        (
+            "v1_kauai_crop_grid",
+            EncodeOptions {
+                method: Method::Grid,
+                ..Default::default()
+            },
+        ),
         (
             "v1_kauai_crop_sites",
-            EncodeOptions { method: Method::Sibson, max_error: Some(ErrorBound::Abs(8.0)), ..Default::default() },
+            EncodeOptions {
+                method: Method::Sibson,
+                max_error: Some(ErrorBound::Abs(8.0)),
+                ..Default::default()
+            },
         ),
     ]
 }
@@ -44,7 +66,11 @@ fn golden_files_decode_to_their_expected_samples() {
         let vtz_path = dir().join(format!("{name}.vtz"));
         let exp_path = dir().join(format!("{name}.expected.f32"));
         if !vtz_path.exists() {
-            assert!(bless, "{} is missing (VTZ_BLESS_GOLDEN=1 writes it)", vtz_path.display());
+            assert!(
+                bless,
+                "{} is missing (VTZ_BLESS_GOLDEN=1 writes it)",
+                vtz_path.display()
+            );
             let src = source();
             let bytes = vtz::encode(&src, &opts).unwrap();
             std::fs::write(&vtz_path, &bytes).unwrap();
@@ -59,7 +85,11 @@ fn golden_files_decode_to_their_expected_samples() {
         assert_eq!(g.epsg, Some(4326));
         assert!(r.valid_count() < r.len(), "{name}: the crop has voids");
         let expected = std::fs::read(&exp_path).unwrap();
-        assert!(as_f32_bytes(&r) == expected, "{name}: decoded samples differ from {}", exp_path.display());
+        assert!(
+            as_f32_bytes(&r) == expected,
+            "{name}: decoded samples differ from {}",
+            exp_path.display()
+        );
         // And the decode is within the bound it claims, against the source window.
         let c = vtz::metrics::compare(&source(), &r).unwrap();
         assert_eq!((c.lost, c.invented), (0, 0));
@@ -76,7 +106,10 @@ fn every_proper_prefix_of_the_golden_files_is_rejected() {
     for (name, _) in cases() {
         let bytes = std::fs::read(dir().join(format!("{name}.vtz"))).unwrap();
         for n in 0..bytes.len() {
-            assert!(vtz::decode(&bytes[..n]).is_err(), "{name}: prefix of {n} bytes decoded");
+            assert!(
+                vtz::decode(&bytes[..n]).is_err(),
+                "{name}: prefix of {n} bytes decoded"
+            );
         }
     }
 }

@@ -51,7 +51,10 @@ impl<'a> ByteReader<'a> {
     pub fn finite_f64(&mut self, field: &str) -> Result<f64> {
         let v = self.f64(field)?;
         if !v.is_finite() {
-            return Err(Error::corrupt(format!("{}: {field} is not finite", self.what)));
+            return Err(Error::corrupt(format!(
+                "{}: {field} is not finite",
+                self.what
+            )));
         }
         Ok(v)
     }

@@ -135,7 +135,8 @@ impl Default for Limits {
 pub fn write(header: &Header, sections: &[Section]) -> Vec<u8> {
     let body = header.to_bytes();
     let payload_len: usize = sections.iter().map(|s| s.payload.len()).sum();
-    let mut out = Vec::with_capacity(32 + body.len() + sections.len() * DIR_ENTRY_LEN + payload_len);
+    let mut out =
+        Vec::with_capacity(32 + body.len() + sections.len() * DIR_ENTRY_LEN + payload_len);
     out.extend_from_slice(&MAGIC);
     out.put_u16(VERSION);
     out.put_u16(0); // required flags: none defined in version 1
@@ -326,7 +327,8 @@ impl<R: Read + Seek> ContainerReader<R> {
         }
         if count > 0 || header.primary != 0 {
             match entries.get(header.primary as usize) {
-                Some(e) if e.kind.is_representation() || matches!(e.kind, SectionKind::Unknown(_)) => {}
+                Some(e)
+                    if e.kind.is_representation() || matches!(e.kind, SectionKind::Unknown(_)) => {}
                 Some(e) => {
                     return Err(Error::corrupt(format!(
                         "primary section {} is a {} section, not a representation",
@@ -377,7 +379,11 @@ impl<R: Read + Seek> ContainerReader<R> {
             .map_err(|err| Error::io("seeking", err))?;
         // The length was checked against the file length when the directory was read.
         let mut buf = vec![0u8; e.length as usize];
-        read_exact(&mut self.inner, &mut buf, &format!("{} section", e.kind.name()))?;
+        read_exact(
+            &mut self.inner,
+            &mut buf,
+            &format!("{} section", e.kind.name()),
+        )?;
         if crc32fast::hash(&buf) != e.crc {
             return Err(Error::corrupt(format!(
                 "section {i} ({}): checksum mismatch",

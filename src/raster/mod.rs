@@ -194,7 +194,9 @@ impl Raster {
         sample_type: SampleType,
     ) -> Result<Raster> {
         if width == 0 || height == 0 {
-            return Err(Error::invalid(format!("raster size {width}x{height} is empty")));
+            return Err(Error::invalid(format!(
+                "raster size {width}x{height} is empty"
+            )));
         }
         let n = width
             .checked_mul(height)
@@ -207,8 +209,8 @@ impl Raster {
         }
         let fill = nodata.unwrap_or(f64::NAN);
         let mut mask: Option<Vec<bool>> = None;
-        for i in 0..n {
-            let v = data[i];
+        for (i, d) in data.iter_mut().enumerate() {
+            let v = *d;
             let invalid = v.is_nan() || nodata.is_some_and(|nd| v == nd);
             if v.is_infinite() && !nodata.is_some_and(|nd| v == nd) {
                 return Err(Error::invalid(format!(
@@ -219,7 +221,7 @@ impl Raster {
             }
             if invalid {
                 mask.get_or_insert_with(|| vec![true; n])[i] = false;
-                data[i] = fill;
+                *d = fill;
             }
         }
         Ok(Raster {
@@ -413,7 +415,9 @@ pub struct OutputFile {
 /// Check that `width × height` samples are within `max` before allocating them.
 pub fn check_size(width: u64, height: u64, max: u64) -> Result<usize> {
     if width == 0 || height == 0 {
-        return Err(Error::corrupt(format!("raster size {width}x{height} is empty")));
+        return Err(Error::corrupt(format!(
+            "raster size {width}x{height} is empty"
+        )));
     }
     let n = width
         .checked_mul(height)
@@ -484,19 +488,18 @@ pub fn encode_path(raster: &Raster, path: &Path, opts: &WriteOptions) -> Result<
     };
     Ok(match format {
         Format::GeoTiff => one(geotiff::write(raster)?),
-        Format::Png => {
-            let (png, sidecar) = png::write(raster, opts.png_mapping.as_ref())?;
-            let mut v = one(png);
-            if let Some(s) = sidecar {
-                v.push(OutputFile {
-                    path: png::sidecar_path(path),
-                    bytes: s,
-                });
-            }
-            v
-        }
-        Format::TerrainRgb => {
-            let (png, sidecar) = png::write_terrain_rgb(raster)?;
+        Format::Png | Format::TerrainRgb => {
+            // A raster read from Terrain-RGB keeps that encoding in a .png unless the caller
+            // asks for a 16-bit mapping.
+            let terrain_rgb = format == Format::TerrainRgb
+                || (opts.png_mapping.is_none()
+                    && raster.mapping == png::TERRAIN_RGB
+                    && raster.sample_type == SampleType::F32);
+            let (png, sidecar) = if terrain_rgb {
+                png::write_terrain_rgb(raster)?
+            } else {
+                png::write(raster, opts.png_mapping.as_ref())?
+            };
             let mut v = one(png);
             if let Some(s) = sidecar {
                 v.push(OutputFile {

@@ -16,7 +16,7 @@ use crate::error::{Error, Result};
 use crate::raster::{Raster, SampleType};
 use crate::sibson::{Scratch, Surface};
 pub use select::Norm;
-use select::{SelectParams, Samples, code_of, height_of};
+use select::{Samples, SelectParams, code_of, height_of};
 
 const CODING_LEVELS_RANGE: u8 = 0;
 /// Most levels a decoder accepts.
@@ -42,6 +42,8 @@ pub struct SitesParams {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SitesStats {
     pub sites: usize,
+    /// Sites on the convex hull of the valid samples (the start of the first level).
+    pub hull: usize,
     pub levels: Vec<usize>,
     pub position_bits: f64,
     pub height_bits: f64,
@@ -214,8 +216,11 @@ pub fn decode_sites(
     let mut prev_code = 0i64;
     let mut sites = Vec::new();
     let mut levels = Vec::new();
-    let want_sites = max_sites.unwrap_or(usize::MAX);
-    let want_levels = max_levels.unwrap_or(usize::MAX);
+    // A prefix never stops inside the first level: it holds the hull, without which the
+    // surface would not cover the raster.
+    let first = dir.first().map_or(0, |d| d.0);
+    let want_sites = max_sites.unwrap_or(usize::MAX).max(first);
+    let want_levels = max_levels.unwrap_or(usize::MAX).max(1);
     for (li, &(count, bytes)) in dir.iter().enumerate() {
         let stream = r.take(bytes, "level stream")?;
         if li >= want_levels || sites.len() >= want_sites {
@@ -231,7 +236,9 @@ pub fn decode_sites(
             let gap = pos_model.decode(&mut dec)?;
             let idx = match prev_idx {
                 None => gap,
-                Some(p) => p.checked_add(gap + 1).ok_or_else(|| r.corrupt("site index overflows"))?,
+                Some(p) => p
+                    .checked_add(gap + 1)
+                    .ok_or_else(|| r.corrupt("site index overflows"))?,
             };
             if idx >= n {
                 return Err(r.corrupt(format!("site index {idx} beyond {n} samples")));
@@ -285,7 +292,9 @@ pub fn render(
     let mut vals = d
         .surface
         .eval_window(x0 as i64, y0 as i64, w, h, valid)
-        .ok_or_else(|| Error::corrupt("sites section: the sites do not cover every valid sample"))?;
+        .ok_or_else(|| {
+            Error::corrupt("sites section: the sites do not cover every valid sample")
+        })?;
     let fill = header.nodata.unwrap_or(f64::NAN);
     for yy in 0..h {
         for xx in 0..w {
@@ -316,7 +325,9 @@ pub fn encode(
             "the sites method needs a stopping rule: --max-error, --rmse or --sites",
         ));
     }
-    let range = r.valid_range().map_or(1.0, |(lo, hi)| (hi - lo).max(f64::MIN_POSITIVE));
+    let range = r
+        .valid_range()
+        .map_or(1.0, |(lo, hi)| (hi - lo).max(f64::MIN_POSITIVE));
     let offset = r.valid_range().map_or(0.0, |(lo, _)| lo);
     // The error the surface may have before output rounding, so that the rounded output
     // still meets the bound: integer outputs round to the nearest code.
@@ -361,11 +372,11 @@ pub fn encode(
         let out = render(&d, header, mask_vec.as_deref(), (0, 0, w, h))?;
         let (mut max, mut ss, mut nv) = (0f64, 0f64, 0usize);
         let mut bad: Vec<(u32, i64)> = Vec::new();
-        for i in 0..w * h {
+        for (i, &o) in out.iter().enumerate() {
             if !r.is_valid(i) {
                 continue;
             }
-            let e = (out[i] - r.data[i]).abs();
+            let e = (o - r.data[i]).abs();
             max = max.max(e);
             ss += e * e;
             nv += 1;
@@ -383,6 +394,7 @@ pub fn encode(
             let mut stats2 = SitesStats::default();
             let payload = write_levels(&levels, w, step, offset, bound, &mut stats2)?;
             stats2.sites = levels.iter().map(|l| l.len()).sum();
+            stats2.hull = sel.hull;
             stats2.levels = levels.iter().map(|l| l.len()).collect();
             stats2.max_error = max;
             stats2.rmse = (ss / nv.max(1) as f64).sqrt();
@@ -390,8 +402,7 @@ pub fn encode(
             return Ok((payload, stats2));
         }
         // Violators that are already sites cannot be helped by a new site: step too coarse.
-        let have: std::collections::HashSet<u32> =
-            levels.iter().flatten().map(|s| s.0).collect();
+        let have: std::collections::HashSet<u32> = levels.iter().flatten().map(|s| s.0).collect();
         bad.retain(|s| !have.contains(&s.0));
         if bad.is_empty() {
             return Err(Error::invalid(

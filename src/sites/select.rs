@@ -63,7 +63,10 @@ pub fn hull(s: &Samples) -> Vec<[i64; 2]> {
         let row = y * s.width;
         let first = (0..s.width).find(|&x| (s.valid)(row + x));
         if let Some(x0) = first {
-            let x1 = (0..s.width).rev().find(|&x| (s.valid)(row + x)).unwrap_or(x0);
+            let x1 = (0..s.width)
+                .rev()
+                .find(|&x| (s.valid)(row + x))
+                .unwrap_or(x0);
             cand.push([x0 as i64, y as i64]);
             if x1 != x0 {
                 cand.push([x1 as i64, y as i64]);
@@ -153,8 +156,11 @@ impl State<'_> {
                 Norm::Linf => best.0,
                 Norm::L2 => ss,
             };
-            self.heap
-                .push((key.to_bits(), std::cmp::Reverse(b as u32), self.block_ver[b]));
+            self.heap.push((
+                key.to_bits(),
+                std::cmp::Reverse(b as u32),
+                self.block_ver[b],
+            ));
         }
     }
 
@@ -220,7 +226,11 @@ impl State<'_> {
             self.dirty[i] = false;
             let v = self
                 .surf
-                .eval([(i % w) as i64, (i / w) as i64], &mut hint, &mut self.scratch)
+                .eval(
+                    [(i % w) as i64, (i / w) as i64],
+                    &mut hint,
+                    &mut self.scratch,
+                )
                 .expect("valid samples lie in the hull");
             self.evals += 1;
             let e = (v - self.s.values[i]).abs();
@@ -275,11 +285,7 @@ pub fn height_of(code: i64, step: f64, offset: f64) -> f64 {
 }
 
 /// Run the greedy refinement. `progress` gets the fraction done (by error or site budget).
-pub fn select(
-    s: &Samples,
-    p: &SelectParams,
-    progress: &mut dyn FnMut(f64),
-) -> Result<Selection> {
+pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> Result<Selection> {
     if !(p.step > 0.0 && p.step.is_finite() && p.offset.is_finite()) {
         return Err(Error::invalid("height step must be a positive number"));
     }
@@ -329,9 +335,9 @@ pub fn select(
             (s.valid)(y as usize * s.width + x as usize)
         })
         .ok_or_else(|| Error::invalid("valid samples outside their own hull"))?;
-    for i in 0..n {
+    for (i, &v) in vals.iter().enumerate() {
         if (s.valid)(i) {
-            st.err[i] = (vals[i] - s.values[i]).abs();
+            st.err[i] = (v - s.values[i]).abs();
             st.sum_sq += st.err[i] * st.err[i];
         }
     }
@@ -345,7 +351,9 @@ pub fn select(
         if sel.sites.len() >= target_sites {
             break;
         }
-        let Some((mut e, mut i)) = st.worst() else { break };
+        let Some((mut e, mut i)) = st.worst() else {
+            break;
+        };
         // Stopping decisions are made on fresh errors only.
         let stop = |st: &mut State| -> bool {
             if let Some(me) = p.max_error {
@@ -406,7 +414,12 @@ pub fn select(
         }
     }
     if std::env::var_os("VTZ_DEBUG_SELECT").is_some() {
-        eprintln!("select: {} sites, {} evaluations ({:.1} per sample)", sel.sites.len(), st.evals, st.evals as f64 / valid_count as f64);
+        eprintln!(
+            "select: {} sites, {} evaluations ({:.1} per sample)",
+            sel.sites.len(),
+            st.evals,
+            st.evals as f64 / valid_count as f64
+        );
     }
     Ok(sel)
 }

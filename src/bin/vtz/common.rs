@@ -4,7 +4,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
 use std::time::Duration;
-use vtz::raster::{self, png::PngMapping, Format, ReadOptions, WriteOptions};
+use vtz::raster::{self, Format, ReadOptions, WriteOptions, png::PngMapping};
 use vtz::{Error, Raster, Result};
 
 /// Global output settings.
@@ -80,10 +80,10 @@ impl Ui {
 #[derive(clap::Args, Clone, Debug, Default)]
 pub struct RasterOpts {
     /// 16-bit PNG value mapping: value = offset + scale * code.
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub png_scale: Option<f64>,
     /// 16-bit PNG value mapping offset (e.g. -32768 for SRTM PNGs).
-    #[arg(long, value_name = "O")]
+    #[arg(long, value_name = "O", allow_negative_numbers = true)]
     pub png_offset: Option<f64>,
     /// 16-bit PNG code that marks nodata (e.g. 0).
     #[arg(long, value_name = "CODE")]

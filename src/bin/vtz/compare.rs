@@ -13,14 +13,34 @@ pub struct Args {
     /// Print JSON on stdout instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Also write a PNG map of B − A (blue negative, white 0, red positive, scaled to the
+    /// max error) with a colour bar.
+    #[arg(long, value_name = "FILE")]
+    pub png: Option<PathBuf>,
+    /// Replace an existing --png file.
+    #[arg(short, long)]
+    pub force: bool,
     #[command(flatten)]
     pub raster: RasterOpts,
 }
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
+    if let Some(png) = &a.png {
+        common::check_distinct(&a.a, png)?;
+        common::check_distinct(&a.b, png)?;
+    }
     let ra = ui.busy("reading", || common::read_raster(&a.a, None, &a.raster))?;
     let rb = ui.busy("reading", || common::read_raster(&a.b, None, &a.raster))?;
     let c = vtz::metrics::compare(&ra, &rb)?;
+    if let Some(png) = &a.png {
+        let map = ui.busy("drawing", || vtz::render::error_map(&ra, &rb, None))?;
+        vtz::fsio::write_file(png, map, a.force)?;
+        ui.say(format!(
+            "{}: error map, full colour at ±{}",
+            png.display(),
+            c.max_error
+        ));
+    }
     let vtz_size = |p: &Path| -> Option<u64> {
         common::is_vtz(p, None)
             .then(|| std::fs::metadata(p).ok().map(|m| m.len()))
@@ -35,8 +55,14 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         println!("{j}");
         return Ok(());
     }
-    println!("size        {} x {} ({} valid samples)", c.width, c.height, c.valid);
-    println!("max error   {} ({:.4} % of range {})", c.max_error, c.max_error_pct, c.range);
+    println!(
+        "size        {} x {} ({} valid samples)",
+        c.width, c.height, c.valid
+    );
+    println!(
+        "max error   {} ({:.4} % of range {})",
+        c.max_error, c.max_error_pct, c.range
+    );
     println!("rmse        {} ({:.4} % of range)", c.rmse, c.rmse_pct);
     println!("mean |err|  {}", c.mean_abs_error);
     println!("psnr        {:.2} dB", c.psnr_db);

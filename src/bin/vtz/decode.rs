@@ -48,7 +48,9 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         .busy("decoding", || vtz::decode_with(&bytes, &opts))
         .map_err(|e| e.context(a.input.display()))?;
     let wo = common::write_options(format, a.force, &a.raster);
-    ui.busy("writing", || vtz::raster::write_path(&raster, &a.output, &wo))?;
+    ui.busy("writing", || {
+        vtz::raster::write_path(&raster, &a.output, &wo)
+    })?;
     ui.say(format!(
         "{}: {}x{} {}",
         a.output.display(),

@@ -56,11 +56,17 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             output.display()
         )));
     }
-    let raster = ui.busy("reading", || common::read_raster(&a.input, format, &a.raster))?;
+    let raster = ui.busy("reading", || {
+        common::read_raster(&a.input, format, &a.raster)
+    })?;
     let norm = match a.norm.to_ascii_lowercase().as_str() {
         "linf" | "max" => vtz::sites::Norm::Linf,
         "l2" | "rms" => vtz::sites::Norm::L2,
-        o => return Err(vtz::Error::invalid(format!("unknown norm '{o}' (linf, l2)"))),
+        o => {
+            return Err(vtz::Error::invalid(format!(
+                "unknown norm '{o}' (linf, l2)"
+            )));
+        }
     };
     let opts = EncodeOptions {
         max_error: bound,

@@ -106,7 +106,11 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
             e.kind.name(),
             e.length,
             vtz::metrics::bits_per_sample(e.length, samples),
-            if i == h.primary as usize { "  primary" } else { "" },
+            if i == h.primary as usize {
+                "  primary"
+            } else {
+                ""
+            },
             if e.flags & vtz::container::SF_REQUIRED != 0 {
                 "  required"
             } else {

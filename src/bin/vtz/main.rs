@@ -7,6 +7,7 @@ mod convert;
 mod decode;
 mod encode;
 mod info;
+mod render;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -34,6 +35,8 @@ enum Cmd {
     Compare(compare::Args),
     /// Convert a raster between formats.
     Convert(convert::Args),
+    /// Draw a raster or .vtz as a shaded relief PNG (optionally with its sites).
+    Render(render::Args),
 }
 
 fn main() -> ExitCode {
@@ -45,6 +48,7 @@ fn main() -> ExitCode {
         Cmd::Info(a) => info::run(a, &ui),
         Cmd::Compare(a) => compare::run(a, &ui),
         Cmd::Convert(a) => convert::run(a, &ui),
+        Cmd::Render(a) => render::run(a, &ui),
     };
     match res {
         Ok(()) => ExitCode::SUCCESS,
