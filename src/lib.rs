@@ -110,6 +110,8 @@ pub struct EncodeOptions {
     /// Sibson: refinement norm.
     pub norm: sites::Norm,
     pub method: Method,
+    /// Sibson: height step as a multiple of the error target (default 1).
+    pub step_factor: Option<f64>,
     /// Free-form JSON stored in a metadata section (e.g. provenance).
     pub metadata: Option<String>,
 }
@@ -235,7 +237,7 @@ pub fn encode_progress(
             rmse: opts.rmse.map(|b| b.absolute(header.range)),
             max_sites: opts.sites,
             norm: opts.norm,
-            step_factor: None,
+            step_factor: opts.step_factor,
         };
         let (payload, stats) = sites::encode(raster, &header, &sp, progress)?;
         best = Some((SectionKind::Sites, payload, stats.max_error, Some(stats)));

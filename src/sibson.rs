@@ -19,11 +19,15 @@ use crate::triangulation::{Location, Triangulation, orient};
 /// Scratch buffers for evaluation (reuse one per thread to avoid allocation).
 #[derive(Default, Clone, Debug)]
 pub struct Scratch {
+    /// `mark[t] == stamp` when triangle t is in the current cavity, at `slot[t]`.
+    mark: Vec<u32>,
+    slot: Vec<u32>,
+    stamp: u32,
     cavity: Vec<u32>,
     stack: Vec<u32>,
     centres: Vec<[f64; 2]>,
     bnd: Vec<(u32, u32, u32)>,
-    cycle: Vec<(u32, u32)>,
+    cycle: Vec<(u32, u32, u32)>,
     poly: Vec<[f64; 2]>,
 }
 
@@ -79,7 +83,12 @@ impl Surface {
 
     /// Add a site at integer position `p` with height `h`; returns its id.
     pub fn insert(&mut self, p: [i64; 2], h: f64) -> crate::Result<u32> {
-        let id = self.tri.insert(p)?;
+        self.insert_near(p, h, None)
+    }
+
+    /// [`insert`](Self::insert) with a triangle near `p` to start the location walk from.
+    pub fn insert_near(&mut self, p: [i64; 2], h: f64, hint: Option<u32>) -> crate::Result<u32> {
+        let id = self.tri.insert_near(p, hint)?;
         self.heights.push(h);
         Ok(id)
     }
@@ -113,26 +122,43 @@ impl Surface {
             }
         }
         // Cavity: real triangles whose circumcircle strictly contains p.
+        let nt = tri.num_triangle_slots();
+        if s.mark.len() < nt {
+            s.mark.resize(nt, 0);
+            s.slot.resize(nt, 0);
+        }
+        s.stamp = s.stamp.wrapping_add(1);
+        if s.stamp == 0 {
+            s.mark.iter_mut().for_each(|m| *m = 0);
+            s.stamp = 1;
+        }
+        let stamp = s.stamp;
         s.cavity.clear();
         s.stack.clear();
+        s.mark[t as usize] = stamp;
+        s.slot[t as usize] = 0;
         s.cavity.push(t);
         s.stack.push(t);
         while let Some(c) = s.stack.pop() {
             let n = tri.tri(c).n;
             for nb in n {
-                if tri.tri(nb).is_ghost() || s.cavity.contains(&nb) {
+                if s.mark[nb as usize] == stamp || tri.tri(nb).is_ghost() {
                     continue;
                 }
                 if tri.in_circle(nb, p) {
+                    s.mark[nb as usize] = stamp;
+                    s.slot[nb as usize] = s.cavity.len() as u32;
                     s.cavity.push(nb);
                     s.stack.push(nb);
                 }
             }
         }
+        let in_cavity = |s: &Scratch, t: u32| s.mark[t as usize] == stamp;
         // Circumcentres of cavity triangles, relative to p; boundary edges.
         s.centres.clear();
         s.bnd.clear();
-        for (ci, &c) in s.cavity.iter().enumerate() {
+        for ci in 0..s.cavity.len() {
+            let c = s.cavity[ci];
             let v = tri.tri(c).v;
             let a = sub(tri.point(v[0]), p);
             let b = sub(tri.point(v[1]), p);
@@ -141,27 +167,25 @@ impl Surface {
             s.centres.push([a[0] + o[0], a[1] + o[1]]);
             let n = tri.tri(c).n;
             for k in 0..3 {
-                if !s.cavity.contains(&n[k]) {
+                if !in_cavity(s, n[k]) {
                     s.bnd.push((v[(k + 1) % 3], v[(k + 2) % 3], ci as u32));
                 }
             }
         }
-        // Boundary cycle from its lowest vertex id, counter-clockwise around p.
-        let start = s
-            .bnd
-            .iter()
-            .map(|e| e.0)
-            .min()
-            .expect("cavity has a boundary");
+        // Boundary cycle from its lowest vertex id, counter-clockwise around p. Each vertex
+        // starts exactly one boundary edge, so sorting by it gives a lookup table.
+        s.bnd.sort_unstable_by_key(|e| e.0);
+        let find = |bnd: &[(u32, u32, u32)], a: u32| {
+            bnd.binary_search_by_key(&a, |e| e.0)
+                .map(|i| bnd[i])
+                .expect("cavity boundary is a cycle")
+        };
+        let start = s.bnd[0].0;
         s.cycle.clear();
         let mut cur = start;
         loop {
-            let &(a, b, _) = s
-                .bnd
-                .iter()
-                .find(|e| e.0 == cur)
-                .expect("cavity boundary is a cycle");
-            s.cycle.push((a, b));
+            let (a, b, ci) = find(&s.bnd, cur);
+            s.cycle.push((a, b, ci));
             cur = b;
             if cur == start || s.cycle.len() > s.bnd.len() {
                 break;
@@ -171,31 +195,25 @@ impl Surface {
         let mut num = 0.0;
         let mut den = 0.0;
         let mut g_prev = {
-            let (a, b) = s.cycle[k - 1];
+            let (a, b, _) = s.cycle[k - 1];
             cc0(sub(tri.point(a), p), sub(tri.point(b), p))
         };
         for i in 0..k {
-            let (vi, vn) = s.cycle[i];
+            let (vi, vn, ci0) = s.cycle[i];
             let g_next = cc0(sub(tri.point(vi), p), sub(tri.point(vn), p));
             s.poly.clear();
             s.poly.push(g_next);
             // Cavity triangles around vi, from the one holding edge vi→vn, counter-clockwise.
-            let mut ct = s
-                .bnd
-                .iter()
-                .find(|e| e.0 == vi && e.1 == vn)
-                .map(|e| s.cavity[e.2 as usize])
-                .expect("boundary edge has a cavity triangle");
+            let mut ct = s.cavity[ci0 as usize];
             for _ in 0..s.cavity.len() {
-                let ci = s.cavity.iter().position(|&c| c == ct).expect("in cavity");
-                s.poly.push(s.centres[ci]);
+                s.poly.push(s.centres[s.slot[ct as usize] as usize]);
                 let tr = tri.tri(ct);
                 let kv =
                     tr.v.iter()
                         .position(|&v| v == vi)
                         .expect("vertex of triangle");
                 let nb = tr.n[(kv + 1) % 3];
-                if !s.cavity.contains(&nb) {
+                if !in_cavity(s, nb) {
                     break;
                 }
                 ct = nb;

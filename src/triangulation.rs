@@ -139,6 +139,10 @@ impl Triangulation {
     pub fn tri(&self, t: u32) -> &Tri {
         &self.tris[t as usize]
     }
+    /// Number of triangle slots (live or free); triangle ids are below this.
+    pub fn num_triangle_slots(&self) -> usize {
+        self.tris.len()
+    }
     /// Whether any real triangle exists (three non-collinear sites were inserted).
     pub fn is_2d(&self) -> bool {
         !self.tris.is_empty()
@@ -250,6 +254,11 @@ impl Triangulation {
 
     /// Insert a site; returns its vertex id. Duplicate positions are an error.
     pub fn insert(&mut self, p: [i64; 2]) -> Result<u32> {
+        self.insert_near(p, None)
+    }
+
+    /// [`insert`](Self::insert), starting the point location at triangle `hint`.
+    pub fn insert_near(&mut self, p: [i64; 2], hint: Option<u32>) -> Result<u32> {
         if p[0].abs() > MAX_COORD || p[1].abs() > MAX_COORD {
             return Err(Error::limit(format!(
                 "site coordinate {p:?} beyond ±{MAX_COORD}"
@@ -266,7 +275,7 @@ impl Triangulation {
             self.try_start();
             return Ok(id);
         }
-        let start = match self.locate(p, None) {
+        let start = match self.locate(p, hint) {
             Location::Vertex(_) => return Err(Error::invalid(format!("duplicate site {p:?}"))),
             Location::Triangle(t) => t,
             Location::Outside => self.find_ghost_seeing(p),

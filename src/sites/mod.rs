@@ -93,9 +93,16 @@ fn level_sizes(total: usize, hull: usize) -> Vec<usize> {
     sizes
 }
 
-fn predict(surf: &Surface, p: [i64; 2], prev: i64, step: f64, offset: f64, s: &mut Scratch) -> i64 {
-    let mut hint = 0;
-    match surf.eval(p, &mut hint, s) {
+fn predict(
+    surf: &Surface,
+    p: [i64; 2],
+    prev: i64,
+    step: f64,
+    offset: f64,
+    s: &mut Scratch,
+    hint: &mut u32,
+) -> i64 {
+    match surf.eval(p, hint, s) {
         Some(v) => code_of(v, step, offset),
         None => prev,
     }
@@ -125,6 +132,7 @@ fn write_levels(
     let mut surf = Surface::new();
     let mut sc = Scratch::default();
     let mut prev_code = 0i64;
+    let mut hint = u32::MAX;
     let mut streams = Vec::new();
     for level in levels {
         let mut enc = Encoder::new();
@@ -138,12 +146,12 @@ fn write_levels(
             pos_model.encode(&mut enc, gap);
             let mid = enc.len_estimate();
             let p = [(idx as usize % width) as i64, (idx as usize / width) as i64];
-            let pred = predict(&surf, p, prev_code, step, offset, &mut sc);
+            let pred = predict(&surf, p, prev_code, step, offset, &mut sc, &mut hint);
             h_model.encode(&mut enc, code - pred);
             let after = enc.len_estimate();
             stats.position_bits += 8.0 * (mid - before) as f64;
             stats.height_bits += 8.0 * (after - mid) as f64;
-            surf.insert(p, height_of(code, step, offset))?;
+            surf.insert_near(p, height_of(code, step, offset), Some(hint))?;
             prev_code = code;
             prev_idx = Some(idx);
         }
@@ -214,6 +222,7 @@ pub fn decode_sites(
     let mut surf = Surface::new();
     let mut sc = Scratch::default();
     let mut prev_code = 0i64;
+    let mut hint = u32::MAX;
     let mut sites = Vec::new();
     let mut levels = Vec::new();
     // A prefix never stops inside the first level: it holds the hull, without which the
@@ -247,7 +256,7 @@ pub fn decode_sites(
                 return Err(r.corrupt(format!("site {idx} is a nodata sample")));
             }
             let p = [(idx as usize % width) as i64, (idx as usize / width) as i64];
-            let pred = predict(&surf, p, prev_code, step, offset, &mut sc);
+            let pred = predict(&surf, p, prev_code, step, offset, &mut sc, &mut hint);
             let code = pred
                 .checked_add(h_model.decode(&mut dec)?)
                 .ok_or_else(|| r.corrupt("height code overflows"))?;
@@ -255,7 +264,7 @@ pub fn decode_sites(
             if !h.is_finite() {
                 return Err(r.corrupt("site height is not finite"));
             }
-            surf.insert(p, h)
+            surf.insert_near(p, h, Some(hint))
                 .map_err(|_| r.corrupt(format!("site {idx} is repeated")))?;
             sites.push((idx as u32, h));
             prev_code = code;

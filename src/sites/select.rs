@@ -125,6 +125,8 @@ struct State<'a> {
     block_dirty: Vec<Vec<u32>>,
     dirty_blocks: Vec<u32>,
     evals: u64,
+    /// A triangle near each block (where its last sample was found), to start walks from.
+    block_hint: Vec<u32>,
 }
 
 impl State<'_> {
@@ -220,7 +222,7 @@ impl State<'_> {
             return;
         }
         let w = self.s.width;
-        let mut hint = 0u32;
+        let mut hint = self.block_hint[b];
         for &i in &list {
             let i = i as usize;
             self.dirty[i] = false;
@@ -237,6 +239,7 @@ impl State<'_> {
             self.sum_sq += e * e - self.err[i] * self.err[i];
             self.err[i] = e;
         }
+        self.block_hint[b] = hint;
         self.block_dirty[b] = list;
         self.block_dirty[b].clear();
         self.rescan_block(b);
@@ -327,6 +330,7 @@ pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> R
         block_dirty: vec![Vec::new(); bw * bh],
         dirty_blocks: Vec::new(),
         evals: 0,
+        block_hint: vec![u32::MAX; bw * bh],
     };
     // Initial errors: evaluate the hull surface everywhere.
     let vals = st
@@ -394,7 +398,9 @@ pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> R
         }
         let q = [(i % s.width) as i64, (i / s.width) as i64];
         let code = code_of(s.values[i], p.step, p.offset);
-        st.surf.insert(q, height_of(code, p.step, p.offset))?;
+        let hint = st.block_hint[st.block_of(i)];
+        st.surf
+            .insert_near(q, height_of(code, p.step, p.offset), Some(hint))?;
         st.is_site[i] = true;
         sel.sites.push((i as u32, code));
         st.update_after_insert();

@@ -26,6 +26,9 @@ pub struct Args {
     /// Representation: best (smallest that meets the request), sibson, grid.
     #[arg(long, default_value = "best")]
     pub method: String,
+    /// Sibson: height quantization step as a multiple of the error target (tuning).
+    #[arg(long, value_name = "F", hide = true)]
+    pub step_factor: Option<f64>,
     /// Sibson refinement norm: linf (worst sample) or l2 (worst tile by RMS).
     #[arg(long, default_value = "linf")]
     pub norm: String,
@@ -74,6 +77,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         sites: a.sites,
         norm,
         method: vtz::Method::parse(&a.method)?,
+        step_factor: a.step_factor,
         ..Default::default()
     };
     let (bytes, report) = ui.progress("encoding", |p| vtz::encode_progress(&raster, &opts, p))?;
@@ -95,6 +99,9 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             "lossless": report.max_error == 0.0,
             "method": format!("{:?}", report.method).to_lowercase(),
             "sites": report.sites.as_ref().map(|s| s.sites),
+            "levels": report.sites.as_ref().map(|s| s.levels.clone()),
+            "position_bits_per_site": report.sites.as_ref().map(|s| s.position_bits / s.sites.max(1) as f64),
+            "height_bits_per_site": report.sites.as_ref().map(|s| s.height_bits / s.sites.max(1) as f64),
         });
         println!("{j}");
     } else {
