@@ -159,6 +159,9 @@ pub struct DecodeOptions {
     pub levels: Option<usize>,
     /// Decode only this window.
     pub window: Option<Window>,
+    /// Threads for evaluating the surface (0 = what the machine offers). The output is
+    /// bit-identical for every value.
+    pub threads: usize,
 }
 
 /// Build the file header describing `r`.
@@ -349,6 +352,11 @@ pub fn decode_with(bytes: &[u8], opts: &DecodeOptions) -> Result<Raster> {
                 &header,
                 mask.as_deref(),
                 (win.x, win.y, win.width, win.height),
+                if opts.threads == 0 {
+                    sites::default_threads()
+                } else {
+                    opts.threads
+                },
             )?
         }
         k => {
@@ -396,4 +404,25 @@ pub fn info(bytes: &[u8], limits: Limits) -> Result<FileInfo> {
         header: rd.header().clone(),
         sections: rd.entries().to_vec(),
     })
+}
+
+/// A file's sites section (the primary one when it is one, else the first), with the header
+/// and the decoded validity mask: what `vtz info --stats`, `vtz sites` and `vtz render
+/// --sites` need.
+pub fn sites_section(bytes: &[u8], limits: Limits) -> Result<(Header, Option<Vec<bool>>, Vec<u8>)> {
+    let mut rd = container::ContainerReader::new(std::io::Cursor::new(bytes), limits)?;
+    let header = rd.header().clone();
+    let n = header.samples() as usize;
+    let mask = match rd.find(SectionKind::Mask) {
+        Some(i) => Some(container::mask::decode(&rd.read_section(i)?, n)?),
+        None => None,
+    };
+    let idx = match rd.entries().get(header.primary as usize) {
+        Some(e) if e.kind == SectionKind::Sites => header.primary as usize,
+        _ => rd
+            .find(SectionKind::Sites)
+            .ok_or_else(|| Error::invalid("the file has no sites section"))?,
+    };
+    let payload = rd.read_section(idx)?;
+    Ok((header, mask, payload))
 }

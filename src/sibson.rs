@@ -160,9 +160,17 @@ impl Surface {
         for ci in 0..s.cavity.len() {
             let c = s.cavity[ci];
             let v = tri.tri(c).v;
-            let a = sub(tri.point(v[0]), p);
-            let b = sub(tri.point(v[1]), p);
-            let d = sub(tri.point(v[2]), p);
+            // Canonical rotation: start at the lowest site id (counter-clockwise order kept).
+            let r0 = if v[0] < v[1] && v[0] < v[2] {
+                0
+            } else if v[1] < v[2] {
+                1
+            } else {
+                2
+            };
+            let a = sub(tri.point(v[r0]), p);
+            let b = sub(tri.point(v[(r0 + 1) % 3]), p);
+            let d = sub(tri.point(v[(r0 + 2) % 3]), p);
             let o = cc0([b[0] - a[0], b[1] - a[1]], [d[0] - a[0], d[1] - a[1]]);
             s.centres.push([a[0] + o[0], a[1] + o[1]]);
             let n = tri.tri(c).n;

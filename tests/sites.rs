@@ -124,6 +124,10 @@ proptest! {
         let back = vtz::decode(&bytes).unwrap();
         check_bound(&r, &back, e);
         prop_assert_eq!(bits(&back), bits(&vtz::decode(&bytes).unwrap()));
+        for threads in [1, 3] {
+            let t = vtz::decode_with(&bytes, &DecodeOptions { threads, ..Default::default() }).unwrap();
+            prop_assert_eq!(bits(&back), bits(&t));
+        }
         // Windows stitched together give the same samples as the whole.
         if w >= 2 && h >= 2 {
             let (wx, wy) = (w / 2, h / 2);

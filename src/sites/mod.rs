@@ -60,9 +60,14 @@ pub struct DecodedSites {
     pub sites: Vec<(u32, f64)>,
     /// Sites in each decoded level.
     pub levels: Vec<usize>,
-    /// The bound recorded by the encoder.
+    /// The max error the encoder measured on every valid sample of the full stream.
     pub max_error: f64,
+    /// The RMSE the encoder measured for the full stream.
+    pub rmse: f64,
     pub step: f64,
+    pub offset: f64,
+    /// Sites in each level of the stream (all levels, decoded or not).
+    pub stream_levels: Vec<usize>,
 }
 
 /// Round a surface value to what the output sample type can hold (the decoder's last step).
@@ -112,9 +117,8 @@ fn predict(
 fn write_levels(
     levels: &[Vec<(u32, i64)>],
     width: usize,
-    step: f64,
-    offset: f64,
-    bound: f64,
+    (step, offset): (f64, f64),
+    (bound, rmse): (f64, f64),
     stats: &mut SitesStats,
 ) -> Result<Vec<u8>> {
     let mut out = Vec::new();
@@ -124,6 +128,7 @@ fn write_levels(
     out.put_f64(step);
     out.put_f64(offset);
     out.put_f64(bound);
+    out.put_f64(rmse);
     let total: usize = levels.iter().map(|l| l.len()).sum();
     out.put_u32(total as u32);
     out.put_u32(levels.len() as u32);
@@ -189,8 +194,9 @@ pub fn decode_sites(
     }
     let offset = r.finite_f64("offset")?;
     let bound = r.finite_f64("max error")?;
-    if bound < 0.0 {
-        return Err(r.corrupt("max error is negative"));
+    let rmse = r.finite_f64("rmse")?;
+    if bound < 0.0 || rmse < 0.0 {
+        return Err(r.corrupt("max error or rmse is negative"));
     }
     let total = r.u32("site count")? as u64;
     let n = header.samples();
@@ -283,27 +289,57 @@ pub fn decode_sites(
         sites,
         levels,
         max_error: bound,
+        rmse,
         step,
+        offset,
+        stream_levels: dir.iter().map(|d| d.0).collect(),
     })
 }
 
 /// Evaluate decoded sites on a window of the raster (valid samples only), rounded to the
-/// output sample type. Invalid samples get the nodata fill.
+/// output sample type. Invalid samples get the nodata fill. The window is split into bands
+/// of rows evaluated on up to `threads` threads; every value is a pure function of the
+/// sites, so the result is bit-identical for any thread count.
 pub fn render(
     d: &DecodedSites,
     header: &Header,
     mask: Option<&[bool]>,
     window: (usize, usize, usize, usize),
+    threads: usize,
 ) -> Result<Vec<f64>> {
     let (x0, y0, w, h) = window;
     let width = header.width as usize;
     let valid = |x: i64, y: i64| mask.is_none_or(|m| m[y as usize * width + x as usize]);
-    let mut vals = d
-        .surface
-        .eval_window(x0 as i64, y0 as i64, w, h, valid)
-        .ok_or_else(|| {
+    let threads = threads.clamp(1, 64).min(h.div_ceil(64).max(1));
+    let band = h.div_ceil(threads);
+    let bands: Vec<Option<Vec<f64>>> = if threads == 1 {
+        vec![d.surface.eval_window(x0 as i64, y0 as i64, w, h, valid)]
+    } else {
+        std::thread::scope(|sc| {
+            let handles: Vec<_> = (0..threads)
+                .map(|k| {
+                    let (by, bh) = (k * band, band.min(h.saturating_sub(k * band)));
+                    let surface = &d.surface;
+                    sc.spawn(move || {
+                        if bh == 0 {
+                            return Some(Vec::new());
+                        }
+                        surface.eval_window(x0 as i64, (y0 + by) as i64, w, bh, valid)
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|hd| hd.join().unwrap_or(None))
+                .collect()
+        })
+    };
+    let mut vals = Vec::with_capacity(w * h);
+    for b in bands {
+        vals.extend(b.ok_or_else(|| {
             Error::corrupt("sites section: the sites do not cover every valid sample")
-        })?;
+        })?);
+    }
     let fill = header.nodata.unwrap_or(f64::NAN);
     for yy in 0..h {
         for xx in 0..w {
@@ -316,6 +352,42 @@ pub fn render(
         }
     }
     Ok(vals)
+}
+
+/// Statistics of a sites section as stored: counts, levels, bits per site for positions and
+/// heights (measured by coding the decoded stream again), and the encoder's L∞ / RMSE.
+pub fn stats(payload: &[u8], header: &Header, mask: Option<&[bool]>) -> Result<SitesStats> {
+    let d = decode_sites(payload, header, mask, None, None)?;
+    let width = header.width as usize;
+    let mut levels = Vec::new();
+    let mut at = 0;
+    for &n in &d.levels {
+        levels.push(
+            d.sites[at..at + n]
+                .iter()
+                .map(|&(i, h)| (i, code_of(h, d.step, d.offset)))
+                .collect::<Vec<_>>(),
+        );
+        at += n;
+    }
+    let mut st = SitesStats::default();
+    write_levels(
+        &levels,
+        width,
+        (d.step, d.offset),
+        (d.max_error, d.rmse),
+        &mut st,
+    )?;
+    st.sites = d.sites.len();
+    st.levels = d.levels.clone();
+    st.max_error = d.max_error;
+    st.rmse = d.rmse;
+    Ok(st)
+}
+
+/// Threads to use by default: what the machine offers.
+pub fn default_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
 /// Encode a raster as a sites-section payload; returns it with its statistics.
@@ -375,10 +447,16 @@ pub fn encode(
     let mut mask_vec: Option<Vec<bool>> = r.mask.clone();
     for round in 0..=MAX_REPAIRS {
         let mut stats = SitesStats::default();
-        let payload = write_levels(&levels, w, step, offset, 0.0, &mut stats)?;
+        let payload = write_levels(&levels, w, (step, offset), (0.0, 0.0), &mut stats)?;
         // Closed loop: decode exactly as a decoder does and measure.
         let d = decode_sites(&payload, header, mask_vec.as_deref(), None, None)?;
-        let out = render(&d, header, mask_vec.as_deref(), (0, 0, w, h))?;
+        let out = render(
+            &d,
+            header,
+            mask_vec.as_deref(),
+            (0, 0, w, h),
+            default_threads(),
+        )?;
         let (mut max, mut ss, mut nv) = (0f64, 0f64, 0usize);
         let mut bad: Vec<(u32, i64)> = Vec::new();
         for (i, &o) in out.iter().enumerate() {
@@ -399,14 +477,14 @@ pub fn encode(
                     "the sites method could not meet the bound after {MAX_REPAIRS} repair rounds"
                 )));
             }
-            let bound = params.max_error.map_or(max, |_| max);
+            let rmse = (ss / nv.max(1) as f64).sqrt();
             let mut stats2 = SitesStats::default();
-            let payload = write_levels(&levels, w, step, offset, bound, &mut stats2)?;
+            let payload = write_levels(&levels, w, (step, offset), (max, rmse), &mut stats2)?;
             stats2.sites = levels.iter().map(|l| l.len()).sum();
             stats2.hull = sel.hull;
             stats2.levels = levels.iter().map(|l| l.len()).collect();
             stats2.max_error = max;
-            stats2.rmse = (ss / nv.max(1) as f64).sqrt();
+            stats2.rmse = rmse;
             mask_vec.take();
             return Ok((payload, stats2));
         }

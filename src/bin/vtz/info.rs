@@ -11,6 +11,9 @@ pub struct Args {
     /// Print JSON on stdout instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Also decode the sites section's stream: sites, levels, bits per site, L∞ and RMSE.
+    #[arg(long)]
+    pub stats: bool,
 }
 
 pub fn run(a: Args, _ui: &Ui) -> Result<()> {
@@ -40,8 +43,29 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
             "epsg": g.epsg, "wkt": g.wkt, "geotiff_keys": g.geokeys.is_some(),
         })
     });
+    let stats = if a.stats {
+        match vtz::sites_section(&bytes, Limits::default()) {
+            Ok((hd, mask, payload)) => Some(vtz::sites::stats(&payload, &hd, mask.as_deref())?),
+            Err(vtz::Error::InvalidArgument { .. }) => None,
+            Err(e) => return Err(e),
+        }
+    } else {
+        None
+    };
+    let range = h.range.map_or(0.0, |(lo, hi)| hi - lo);
+    let pct = |v: f64| if range > 0.0 { 100.0 * v / range } else { 0.0 };
+    let stats_json = stats.as_ref().map(|s| {
+        serde_json::json!({
+            "sites": s.sites, "hull": s.hull, "levels": s.levels,
+            "position_bits_per_site": s.position_bits / s.sites.max(1) as f64,
+            "height_bits_per_site": s.height_bits / s.sites.max(1) as f64,
+            "max_error": s.max_error, "max_error_pct": pct(s.max_error),
+            "rmse": s.rmse, "rmse_pct": pct(s.rmse),
+        })
+    });
     if a.json {
         let j = serde_json::json!({
+            "stats": stats_json,
             "file": a.input, "bytes": info.file_bytes, "width": h.width, "height": h.height,
             "samples": samples, "sample_type": h.sample_type.name(),
             "value_scale": h.mapping.scale, "value_offset": h.mapping.offset,
@@ -98,6 +122,28 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
             }
         }
         None => println!("georef        none"),
+    }
+    if let Some(s) = &stats {
+        let n = s.sites.max(1) as f64;
+        println!(
+            "sites         {} in {} levels {:?}",
+            s.sites,
+            s.levels.len(),
+            s.levels
+        );
+        println!(
+            "bits/site     {:.2} positions + {:.2} heights = {:.2}",
+            s.position_bits / n,
+            s.height_bits / n,
+            (s.position_bits + s.height_bits) / n
+        );
+        println!(
+            "achieved      max error {} ({:.4} % of range), rmse {:.4} ({:.4} %)",
+            s.max_error,
+            pct(s.max_error),
+            s.rmse,
+            pct(s.rmse)
+        );
     }
     println!("sections      {}", info.sections.len());
     for (i, e) in info.sections.iter().enumerate() {

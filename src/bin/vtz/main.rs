@@ -8,6 +8,7 @@ mod decode;
 mod encode;
 mod info;
 mod render;
+mod sites;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -35,6 +36,8 @@ enum Cmd {
     Compare(compare::Args),
     /// Convert a raster between formats.
     Convert(convert::Args),
+    /// List a .vtz file's sites (importance rank, level, position, height) as CSV.
+    Sites(sites::Args),
     /// Draw a raster or .vtz as a shaded relief PNG (optionally with its sites).
     Render(render::Args),
 }
@@ -48,6 +51,7 @@ fn main() -> ExitCode {
         Cmd::Info(a) => info::run(a, &ui),
         Cmd::Compare(a) => compare::run(a, &ui),
         Cmd::Convert(a) => convert::run(a, &ui),
+        Cmd::Sites(a) => sites::run(a, &ui),
         Cmd::Render(a) => render::run(a, &ui),
     };
     match res {

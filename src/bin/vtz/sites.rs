@@ -1,0 +1,60 @@
+//! `vtz sites`: list a .vtz file's sites with their importance rank, as CSV.
+
+use crate::common::{self, Ui};
+use std::io::Write;
+use std::path::PathBuf;
+use vtz::{Limits, Result};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Input .vtz file with a sites section.
+    pub input: PathBuf,
+    /// Write the CSV here instead of stdout.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Replace an existing output file.
+    #[arg(short, long)]
+    pub force: bool,
+}
+
+pub fn run(a: Args, ui: &Ui) -> Result<()> {
+    let bytes = common::read_file(&a.input)?;
+    let (h, mask, payload) =
+        vtz::sites_section(&bytes, Limits::default()).map_err(|e| e.context(a.input.display()))?;
+    let d = vtz::sites::decode_sites(&payload, &h, mask.as_deref(), None, None)?;
+    let w = h.width as usize;
+    let mut csv = String::from("rank,level,col,row,x,y,height\n");
+    let mut rank = 0usize;
+    for (level, &n) in d.levels.iter().enumerate() {
+        for &(idx, height) in &d.sites[rank..rank + n] {
+            let (col, row) = (idx as usize % w, idx as usize / w);
+            // Model coordinates of the sample (its centre for area rasters).
+            let (x, y) = match &h.georef {
+                Some(g) => {
+                    let half = if g.raster_type == vtz::RasterType::Area {
+                        0.5
+                    } else {
+                        0.0
+                    };
+                    (
+                        (g.origin[0] + (col as f64 + half) * g.pixel_size[0]).to_string(),
+                        (g.origin[1] - (row as f64 + half) * g.pixel_size[1]).to_string(),
+                    )
+                }
+                None => (col.to_string(), row.to_string()),
+            };
+            csv.push_str(&format!("{rank},{level},{col},{row},{x},{y},{height}\n"));
+            rank += 1;
+        }
+    }
+    match &a.output {
+        Some(p) => {
+            vtz::fsio::write_file(p, csv.into_bytes(), a.force)?;
+            ui.say(format!("{}: {rank} sites", p.display()));
+        }
+        None => std::io::stdout()
+            .write_all(csv.as_bytes())
+            .map_err(|e| vtz::Error::io("stdout", e))?,
+    }
+    Ok(())
+}
