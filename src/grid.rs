@@ -155,8 +155,18 @@ pub fn encode(r: &Raster, params: &GridParams) -> Result<(Vec<u8>, f64)> {
         }
     } else {
         if e > 0.0 {
-            let offset = r.valid_range().map_or(0.0, |(lo, _)| lo);
-            chosen = try_int(2.0 * e, offset, e);
+            let (lo, hi) = r.valid_range().unwrap_or((0.0, 0.0));
+            // Leave room for rounding the reconstruction to f32 (or f64), so a sample half a
+            // step from two levels still lands within the bound.
+            let ulp = if f32_out {
+                2f64.powi(-23)
+            } else {
+                2f64.powi(-52)
+            };
+            let margin = 4.0 * ulp * lo.abs().max(hi.abs());
+            if e > 2.0 * margin {
+                chosen = try_int(2.0 * (e - margin), lo, e);
+            }
         }
         // Float data that holds integers (many DEMs do) codes losslessly as integers.
         if chosen.is_none() {

@@ -369,3 +369,30 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn float_samples_half_a_step_between_levels_stay_quantized() {
+    // Values exactly between two quantization levels, at a magnitude where f32 rounding of
+    // the reconstruction matters: the grid must stay lossy and within the bound.
+    let mut s = 1u64;
+    let data: Vec<f64> = (0..40_000)
+        .map(|_| {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (1000.0 + (s >> 11) as f64 / (1u64 << 53) as f64 * 100.0) as f32 as f64
+        })
+        .collect();
+    let r = Raster::from_values(200, 200, data, None, SampleType::F32).unwrap();
+    for e in [0.1, 0.01, 0.3] {
+        let opts = EncodeOptions {
+            max_error: Some(ErrorBound::Abs(e)),
+            method: Method::Grid,
+            ..Default::default()
+        };
+        let (bytes, rep) = vtz::encode_report(&r, &opts).unwrap();
+        assert!(rep.max_error > 0.0, "e={e}: fell back to lossless");
+        let back = vtz::decode(&bytes).unwrap();
+        assert!(vtz::metrics::compare(&r, &back).unwrap().max_error <= e);
+    }
+}

@@ -1,0 +1,77 @@
+//! Encode and decode speed of vtz's methods on corpus rasters (criterion).
+//!
+//! `cargo bench --bench codec` — samples/s are reported as throughput (elements = samples).
+//! Uses `corpus/scape_crater.png` (154 224 samples) and, when `../shared/corpus` is present,
+//! the 1201² White Mountains SRTM tile.
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use std::path::Path;
+use std::time::Duration;
+use vtz::{DecodeOptions, EncodeOptions, ErrorBound, Method};
+
+fn rasters() -> Vec<(String, vtz::Raster)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut v = vec![(
+        "scape_crater".to_string(),
+        vtz::raster::read_path(&root.join("corpus/scape_crater.png"), &Default::default()).unwrap(),
+    )];
+    let wm = root.join("../shared/corpus/srtm3_N44W072_white_mountains.f32");
+    if wm.exists() {
+        v.push((
+            "white_mountains_1201".to_string(),
+            vtz::raster::read_path(&wm, &Default::default()).unwrap(),
+        ));
+    }
+    v
+}
+
+fn bench(c: &mut Criterion) {
+    for (name, r) in rasters() {
+        let mut g = c.benchmark_group(&name);
+        g.sample_size(10)
+            .measurement_time(Duration::from_secs(8))
+            .warm_up_time(Duration::from_secs(1));
+        g.throughput(Throughput::Elements(r.len() as u64));
+        for (label, method, bound) in [
+            (
+                "sibson_1pct",
+                Method::Sibson,
+                Some(ErrorBound::PercentOfRange(1.0)),
+            ),
+            (
+                "sibson_10pct",
+                Method::Sibson,
+                Some(ErrorBound::PercentOfRange(10.0)),
+            ),
+            (
+                "grid_1pct",
+                Method::Grid,
+                Some(ErrorBound::PercentOfRange(1.0)),
+            ),
+            ("grid_lossless", Method::Grid, None),
+        ] {
+            let opts = EncodeOptions {
+                method,
+                max_error: bound,
+                ..Default::default()
+            };
+            let bytes = vtz::encode(&r, &opts).unwrap();
+            g.bench_function(format!("encode_{label}"), |b| {
+                b.iter(|| vtz::encode(&r, &opts).unwrap())
+            });
+            for threads in [1, 2] {
+                let d = DecodeOptions {
+                    threads,
+                    ..Default::default()
+                };
+                g.bench_function(format!("decode_{label}_t{threads}"), |b| {
+                    b.iter(|| vtz::decode_with(&bytes, &d).unwrap())
+                });
+            }
+        }
+        g.finish();
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
