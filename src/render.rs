@@ -343,8 +343,7 @@ fn shade_values(r: &Raster, o: &ShadeOptions) -> Vec<f64> {
     // Unit vector towards the light: x east, y north, z up.
     let light = [az.sin() * alt.cos(), az.cos() * alt.cos(), alt.sin()];
     let mut out = vec![0.0; w * h];
-    for y in 0..h {
-        let (dx, dy) = spacing[y];
+    for (y, &(dx, dy)) in spacing.iter().enumerate().take(h) {
         for x in 0..w {
             let i = y * w + x;
             if !r.is_valid(i) {

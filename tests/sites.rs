@@ -20,7 +20,7 @@ fn terrain(kind: Kind, w: usize, h: usize, seed: u64, holes: bool, float: bool) 
             .wrapping_add(1442695040888963407);
         (s >> 11) as f64 / (1u64 << 53) as f64
     };
-    let phases: Vec<f64> = (0..12).map(|_| rnd() * 6.283).collect();
+    let phases: Vec<f64> = (0..12).map(|_| rnd() * std::f64::consts::TAU).collect();
     let mut data = Vec::with_capacity(w * h);
     for y in 0..h {
         for x in 0..w {
