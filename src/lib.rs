@@ -112,6 +112,9 @@ pub struct EncodeOptions {
     pub method: Method,
     /// Sibson: height step as a multiple of the error target (default 1).
     pub step_factor: Option<f64>,
+    /// Aim for a file of at most this many bytes: the smallest max-error bound (found by
+    /// bisection) whose file fits. Excludes `max_error`, `rmse` and `sites`.
+    pub target_bytes: Option<u64>,
     /// Free-form JSON stored in a metadata section (e.g. provenance).
     pub metadata: Option<String>,
 }
@@ -206,6 +209,70 @@ pub fn encode_report(raster: &Raster, opts: &EncodeOptions) -> Result<(Vec<u8>, 
 
 /// [`encode_report`] with a progress callback (fraction done, 0..1).
 pub fn encode_progress(
+    raster: &Raster,
+    opts: &EncodeOptions,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(Vec<u8>, EncodeReport)> {
+    match opts.target_bytes {
+        Some(t) => encode_to_size(raster, opts, t, progress),
+        None => encode_once(raster, opts, progress),
+    }
+}
+
+/// Bisect the max-error bound (geometrically, between 10⁻⁶ of the range and the range) for
+/// the smallest bound whose file is at most `target` bytes.
+fn encode_to_size(
+    raster: &Raster,
+    opts: &EncodeOptions,
+    target: u64,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(Vec<u8>, EncodeReport)> {
+    if opts.max_error.is_some() || opts.rmse.is_some() || opts.sites.is_some() {
+        return Err(Error::invalid(
+            "a size target excludes --max-error, --rmse and --sites",
+        ));
+    }
+    let range = raster.valid_range().map_or(0.0, |(lo, hi)| hi - lo);
+    let mut o = opts.clone();
+    o.target_bytes = None;
+    let mut try_bound = |e: f64| {
+        o.max_error = Some(ErrorBound::Abs(e));
+        encode_once(raster, &o, &mut |_| {})
+    };
+    // Lossless first: if it fits, nothing is lost.
+    let lossless = {
+        let mut l = opts.clone();
+        l.target_bytes = None;
+        l.method = Method::Grid;
+        encode_once(raster, &l, &mut |_| {})?
+    };
+    if lossless.0.len() as u64 <= target || range <= 0.0 {
+        return Ok(lossless);
+    }
+    let (mut lo, mut hi) = (range * 1e-6, range);
+    let mut best = try_bound(hi)?;
+    if best.0.len() as u64 > target {
+        return Err(Error::invalid(format!(
+            "cannot fit in {target} bytes: {} bytes at a max error of the whole range",
+            best.0.len()
+        )));
+    }
+    const STEPS: usize = 14;
+    for k in 0..STEPS {
+        let mid = (lo * hi).sqrt();
+        let r = try_bound(mid)?;
+        if r.0.len() as u64 <= target {
+            hi = mid;
+            best = r;
+        } else {
+            lo = mid;
+        }
+        progress((k + 1) as f64 / STEPS as f64);
+    }
+    Ok(best)
+}
+
+fn encode_once(
     raster: &Raster,
     opts: &EncodeOptions,
     progress: &mut dyn FnMut(f64),

@@ -257,3 +257,26 @@ fn sibson_method_without_a_stopping_rule_is_refused() {
     .unwrap_err();
     assert!(matches!(e, Error::InvalidArgument { .. }), "{e}");
 }
+
+#[test]
+fn size_target_is_met_with_the_smallest_bound_that_fits() {
+    let r = terrain(Kind::Fbm, 64, 48, 11, false, true);
+    for target in [300u64, 1500, 6000] {
+        let opts = EncodeOptions {
+            target_bytes: Some(target),
+            ..Default::default()
+        };
+        let (bytes, rep) = vtz::encode_report(&r, &opts).unwrap();
+        assert!(bytes.len() as u64 <= target, "{} > {target}", bytes.len());
+        let back = vtz::decode(&bytes).unwrap();
+        assert!(vtz::metrics::compare(&r, &back).unwrap().max_error <= rep.max_error + 1e-9);
+    }
+    let tiny = EncodeOptions {
+        target_bytes: Some(10),
+        ..Default::default()
+    };
+    assert!(matches!(
+        vtz::encode(&r, &tiny),
+        Err(Error::InvalidArgument { .. })
+    ));
+}

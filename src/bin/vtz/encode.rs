@@ -17,6 +17,12 @@ pub struct Args {
     /// Store every sample exactly (the default when no bound is given).
     #[arg(long, conflicts_with_all = ["sites", "rmse"])]
     pub lossless: bool,
+    /// Aim for at most B bits per sample (the smallest bound that fits, by bisection).
+    #[arg(long, value_name = "B", conflicts_with_all = ["max_error", "lossless", "sites", "rmse", "size"])]
+    pub bps: Option<f64>,
+    /// Aim for a file of at most this many bytes (the smallest bound that fits).
+    #[arg(long, value_name = "BYTES", conflicts_with_all = ["max_error", "lossless", "sites", "rmse"])]
+    pub size: Option<u64>,
     /// Sibson sites: stop at N sites (a coarser surface; the bound is what it achieves).
     #[arg(long, value_name = "N")]
     pub sites: Option<usize>,
@@ -71,6 +77,16 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             )));
         }
     };
+    let target_bytes = match (a.size, a.bps) {
+        (Some(s), _) => Some(s),
+        (None, Some(b)) if b > 0.0 && b.is_finite() => {
+            Some((b * raster.len() as f64 / 8.0).floor() as u64)
+        }
+        (None, Some(b)) => {
+            return Err(vtz::Error::invalid(format!("--bps {b} must be positive")));
+        }
+        (None, None) => None,
+    };
     let opts = EncodeOptions {
         max_error: bound,
         rmse: a.rmse.as_deref().map(ErrorBound::parse).transpose()?,
@@ -78,6 +94,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         norm,
         method: vtz::Method::parse(&a.method)?,
         step_factor: a.step_factor,
+        target_bytes,
         ..Default::default()
     };
     let (bytes, report) = ui.progress("encoding", |p| vtz::encode_progress(&raster, &opts, p))?;
