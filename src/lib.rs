@@ -165,6 +165,46 @@ pub struct DecodeOptions {
     /// Threads for evaluating the surface (0 = what the machine offers). The output is
     /// bit-identical for every value.
     pub threads: usize,
+    /// Sites section: evaluate the continuous surface on a grid scaled by this factor.
+    pub scale: Option<Scale>,
+}
+
+/// A resampling factor `num/den` (2/1 doubles the resolution, 1/4 quarters it).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Scale {
+    pub num: u32,
+    pub den: u32,
+}
+
+impl Scale {
+    /// Parse `2`, `0.25` or `3/2` (decimals become the nearest fraction with a denominator
+    /// of at most 64).
+    pub fn parse(s: &str) -> Result<Scale> {
+        let bad = || Error::invalid(format!("scale '{s}' is not a positive number or fraction"));
+        let (num, den) = if let Some((a, b)) = s.split_once('/') {
+            (
+                a.trim().parse::<u32>().map_err(|_| bad())?,
+                b.trim().parse::<u32>().map_err(|_| bad())?,
+            )
+        } else {
+            let v: f64 = s.trim().parse().map_err(|_| bad())?;
+            if !(v > 0.0 && v <= 4096.0) {
+                return Err(bad());
+            }
+            (1..=64u32)
+                .map(|d| ((v * d as f64).round().max(1.0) as u32, d))
+                .min_by(|a, b| {
+                    let ea = (a.0 as f64 / a.1 as f64 - v).abs();
+                    let eb = (b.0 as f64 / b.1 as f64 - v).abs();
+                    ea.total_cmp(&eb)
+                })
+                .expect("non-empty")
+        };
+        if num == 0 || den == 0 {
+            return Err(bad());
+        }
+        Ok(Scale { num, den })
+    }
 }
 
 /// Build the file header describing `r`.
@@ -408,8 +448,45 @@ pub fn decode_with(bytes: &[u8], opts: &DecodeOptions) -> Result<Raster> {
                     "--sites and --level need a sites section (this one is a grid)",
                 ));
             }
+            if opts.scale.is_some() {
+                return Err(Error::invalid(
+                    "--scale needs a sites section (this one is a grid)",
+                ));
+            }
             let full = grid::decode(&payload, &header, mask.as_deref())?;
             crop(&full, w, win)
+        }
+        SectionKind::Sites if opts.scale.is_some() => {
+            if opts.window.is_some() {
+                return Err(Error::invalid("--scale and --window cannot be combined"));
+            }
+            let s = opts.scale.expect("checked");
+            let d =
+                sites::decode_sites(&payload, &header, mask.as_deref(), opts.levels, opts.sites)?;
+            let (data, m, ow, oh) =
+                sites::render_scaled(&d, &header, mask.as_deref(), s.num, s.den)?;
+            let f = s.den as f64 / s.num as f64;
+            let georef = header.georef.as_ref().map(|g| {
+                let mut g = g.clone();
+                if g.raster_type == RasterType::Area {
+                    g.origin[0] += 0.5 * g.pixel_size[0] * (1.0 - f);
+                    g.origin[1] -= 0.5 * g.pixel_size[1] * (1.0 - f);
+                }
+                g.pixel_size = [g.pixel_size[0] * f, g.pixel_size[1] * f];
+                g
+            });
+            let mut r = Raster {
+                width: ow,
+                height: oh,
+                data,
+                mask: Some(m),
+                nodata: header.nodata,
+                sample_type: header.sample_type,
+                mapping: header.mapping,
+                georef,
+            };
+            r.normalize_mask();
+            return Ok(r);
         }
         SectionKind::Sites => {
             let d =

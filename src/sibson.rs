@@ -247,28 +247,54 @@ impl Surface {
         h: usize,
         want: impl Fn(i64, i64) -> bool,
     ) -> Option<Vec<f64>> {
+        let out = self.eval_lattice(x0, y0, w, h, 1, &want);
+        for (i, v) in out.iter().enumerate() {
+            let (x, y) = (x0 + (i % w) as i64, y0 + (i / w) as i64);
+            if v.is_nan() && want(x, y) {
+                return None;
+            }
+        }
+        Some(out)
+    }
+
+    /// Evaluate the lattice points `(x0 + i·step, y0 + j·step)`, `i < w`, `j < h`, for which
+    /// `want` holds, by rasterizing each triangle once. Points outside the sites' hull (and
+    /// unwanted ones) are NaN. Each value is the same as [`eval`](Self::eval) gives.
+    pub fn eval_lattice(
+        &self,
+        x0: i64,
+        y0: i64,
+        w: usize,
+        h: usize,
+        step: i64,
+        want: &dyn Fn(i64, i64) -> bool,
+    ) -> Vec<f64> {
         let n = w * h;
         let mut out = vec![f64::NAN; n];
-        let mut done = vec![false; n];
-        let (x1, y1) = (x0 + w as i64 - 1, y0 + h as i64 - 1);
+        let step = step.max(1);
+        let (x1, y1) = (x0 + (w as i64 - 1) * step, y0 + (h as i64 - 1) * step);
+        let idx = |x: i64, y: i64| ((y - y0) / step) as usize * w + ((x - x0) / step) as usize;
+        // First lattice coordinate ≥ v on the lattice through `origin`.
+        let up = |v: i64, origin: i64| origin + (v - origin + step - 1).div_euclid(step) * step;
         if !self.tri.is_2d() {
-            for y in y0..=y1 {
-                for x in x0..=x1 {
+            for y in (y0..=y1).step_by(step as usize) {
+                for x in (x0..=x1).step_by(step as usize) {
                     if want(x, y) {
-                        out[((y - y0) as usize) * w + (x - x0) as usize] =
-                            self.eval_collinear([x, y])?;
+                        out[idx(x, y)] = self.eval_collinear([x, y]).unwrap_or(f64::NAN);
                     }
                 }
             }
-            return Some(out);
+            return out;
         }
+        let mut done = vec![false; n];
         let mut s = Scratch::default();
         for t in self.tri.real_triangles() {
             let v = self.tri.tri(t).v;
             let pts = v.map(|i| self.tri.point(i));
             let ty0 = pts.iter().map(|p| p[1]).min().unwrap_or(0).max(y0);
             let ty1 = pts.iter().map(|p| p[1]).max().unwrap_or(0).min(y1);
-            for y in ty0..=ty1 {
+            let mut y = up(ty0, y0);
+            while y <= ty1 {
                 // Intersect the three closed half-planes with row y, exactly.
                 let (mut lo, mut hi) = (x0, x1);
                 for k in 0..3 {
@@ -284,29 +310,23 @@ impl Surface {
                         hi = lo - 1;
                     }
                 }
-                for x in lo..=hi {
-                    let i = ((y - y0) as usize) * w + (x - x0) as usize;
-                    if done[i] || !want(x, y) {
-                        continue;
+                let mut x = up(lo, x0);
+                while x <= hi {
+                    let i = idx(x, y);
+                    if !done[i] && want(x, y) {
+                        done[i] = true;
+                        let p = [x, y];
+                        out[i] = match v.iter().position(|&vi| self.tri.point(vi) == p) {
+                            Some(k) => self.heights[v[k] as usize],
+                            None => self.eval_in(p, t, &mut s),
+                        };
                     }
-                    done[i] = true;
-                    let p = [x, y];
-                    out[i] = match v.iter().position(|&vi| self.tri.point(vi) == p) {
-                        Some(k) => self.heights[v[k] as usize],
-                        None => self.eval_in(p, t, &mut s),
-                    };
+                    x += step;
                 }
+                y += step;
             }
         }
-        for y in y0..=y1 {
-            for x in x0..=x1 {
-                let i = ((y - y0) as usize) * w + (x - x0) as usize;
-                if !done[i] && want(x, y) {
-                    return None;
-                }
-            }
-        }
-        Some(out)
+        out
     }
 
     fn lerp_edge(&self, a: u32, b: u32, p: [i64; 2]) -> f64 {

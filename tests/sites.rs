@@ -1,7 +1,9 @@
 //! The sites (Voronoi/Sibson) method: hard bound, determinism, windows, prefixes, bad input.
 
 use proptest::prelude::*;
-use vtz::{DecodeOptions, EncodeOptions, Error, ErrorBound, Method, Raster, SampleType, Window};
+use vtz::{
+    DecodeOptions, EncodeOptions, Error, ErrorBound, Method, Raster, SampleType, Scale, Window,
+};
 
 #[derive(Clone, Copy, Debug)]
 enum Kind {
@@ -279,4 +281,67 @@ fn size_target_is_met_with_the_smallest_bound_that_fits() {
         vtz::encode(&r, &tiny),
         Err(Error::InvalidArgument { .. })
     ));
+}
+
+#[test]
+fn scaled_decoding_samples_the_same_surface() {
+    let mut r = terrain(Kind::Fbm, 50, 40, 21, true, true);
+    r.georef = Some(vtz::Georef {
+        origin: [1000.0, 2000.0],
+        pixel_size: [10.0, 10.0],
+        raster_type: vtz::RasterType::Area,
+        epsg: Some(32633),
+        wkt: None,
+        geokeys: None,
+    });
+    let bytes = vtz::encode(&r, &sites_opts(1.5)).unwrap();
+    let base = vtz::decode(&bytes).unwrap();
+    let dec = |s: &str| {
+        vtz::decode_with(
+            &bytes,
+            &DecodeOptions {
+                scale: Some(vtz::Scale::parse(s).unwrap()),
+                ..Default::default()
+            },
+        )
+        .unwrap()
+    };
+    let one = dec("1");
+    assert_eq!(bits(&one), bits(&base));
+    let up = dec("2");
+    assert_eq!((up.width, up.height), (99, 79));
+    let g = up.georef.as_ref().unwrap();
+    assert_eq!(g.pixel_size, [5.0, 5.0]);
+    assert_eq!(g.origin, [1002.5, 1997.5]);
+    let down = dec("0.5");
+    assert_eq!((down.width, down.height), (25, 20));
+    for y in 0..40 {
+        for x in 0..50 {
+            let i = y * 50 + x;
+            if !base.is_valid(i) {
+                continue;
+            }
+            let j = 2 * y * 99 + 2 * x;
+            if up.is_valid(j) {
+                assert!(
+                    (up.data[j] - base.data[i]).abs() < 1e-3,
+                    "({x},{y}): {} vs {}",
+                    up.data[j],
+                    base.data[i]
+                );
+            }
+            if x % 2 == 0 && y % 2 == 0 && down.is_valid(y / 2 * 25 + x / 2) {
+                assert!((down.data[y / 2 * 25 + x / 2] - base.data[i]).abs() < 1e-3);
+            }
+        }
+    }
+    // Interpolated samples lie between their neighbours' range (Sibson is a convex combination).
+    let (lo, hi) = r.valid_range().unwrap();
+    assert!(
+        up.data
+            .iter()
+            .enumerate()
+            .all(|(i, &v)| !up.is_valid(i) || (lo - 1.5..=hi + 1.5).contains(&v))
+    );
+    assert!(Scale::parse("0").is_err() && Scale::parse("x").is_err());
 }

@@ -26,6 +26,9 @@ pub struct Args {
     /// Decode only the window x,y,width,height (in samples).
     #[arg(long, value_name = "X,Y,W,H")]
     pub window: Option<String>,
+    /// Sites section: evaluate the surface on a grid scaled by S (2, 0.5, 3/2, …).
+    #[arg(long, value_name = "S")]
+    pub scale: Option<String>,
     /// Replace an existing output file.
     #[arg(short, long)]
     pub force: bool,
@@ -42,6 +45,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         sites: a.sites,
         levels: a.level,
         window: a.window.as_deref().map(vtz::Window::parse).transpose()?,
+        scale: a.scale.as_deref().map(vtz::Scale::parse).transpose()?,
         ..Default::default()
     };
     let raster = ui
