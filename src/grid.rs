@@ -15,6 +15,35 @@ const CODING_F32: u8 = 1;
 const CODING_F64: u8 = 2;
 const PRED_NONE: u8 = 0;
 const PRED_MED: u8 = 1;
+/// Residuals as zig-zag varints, raw DEFLATE.
+const ENTROPY_DEFLATE: u8 = 0;
+/// Residuals range coded, one adaptive integer model per local-activity context.
+const ENTROPY_RANGE: u8 = 1;
+/// Activity contexts: bit length of |a−c| + |b−c| + |d−b|, capped.
+const CONTEXTS: usize = 24;
+
+/// Context of sample i from the codes already known (left a, up b, up-left c, up-right d).
+#[inline]
+fn context(codes: &[i64], w: usize, i: usize) -> usize {
+    let (x, y) = (i % w, i / w);
+    let act: u64 = if y == 0 {
+        if x >= 2 {
+            codes[i - 1].wrapping_sub(codes[i - 2]).unsigned_abs()
+        } else {
+            0
+        }
+    } else {
+        let b = codes[i - w];
+        let a = if x > 0 { codes[i - 1] } else { b };
+        let c = if x > 0 { codes[i - w - 1] } else { b };
+        let d = if x + 1 < w { codes[i - w + 1] } else { b };
+        a.wrapping_sub(c)
+            .unsigned_abs()
+            .saturating_add(b.wrapping_sub(c).unsigned_abs())
+            .saturating_add(d.wrapping_sub(b).unsigned_abs())
+    };
+    ((64 - act.leading_zeros()) as usize).min(CONTEXTS - 1)
+}
 
 /// Largest |code| for integer coding: codes and their reconstruction stay exact in f64.
 const MAX_CODE: f64 = (1u64 << 52) as f64;
@@ -218,30 +247,67 @@ fn encode_f64_keys(r: &Raster) -> Result<(Vec<u8>, f64)> {
     Ok((write_payload(r, dq, codes, 0.0), 0.0))
 }
 
-fn write_payload(r: &Raster, dq: Dequant, mut codes: Vec<i64>, bound: f64) -> Vec<u8> {
+fn write_payload(r: &Raster, dq: Dequant, codes: Vec<i64>, bound: f64) -> Vec<u8> {
+    write_payload_as(r, dq, codes, bound, None)
+}
+
+/// [`write_payload`] with the residual coding forced (`Some`) or the smaller one (`None`).
+fn write_payload_as(
+    r: &Raster,
+    dq: Dequant,
+    mut codes: Vec<i64>,
+    bound: f64,
+    force: Option<u8>,
+) -> Vec<u8> {
+    use crate::entropy::range::{Encoder, IntModel};
     let w = r.width;
     let mut stream = Vec::with_capacity(r.len());
+    let mut enc = Encoder::with_capacity(r.len() / 2);
+    let mut models: Vec<IntModel> = (0..CONTEXTS).map(|_| IntModel::new()).collect();
     let mut valid: u64 = 0;
     for i in 0..codes.len() {
         let p = predict(&codes, w, i);
         if r.is_valid(i) {
-            varint::put_i64(&mut stream, codes[i].wrapping_sub(p));
+            let res = codes[i].wrapping_sub(p);
+            varint::put_i64(&mut stream, res);
+            models[context(&codes, w, i)].encode(&mut enc, res);
             valid += 1;
         } else {
             // Invalid samples take their prediction, so the decoder can rebuild them.
             codes[i] = p;
         }
     }
+    let deflated = entropy::deflate(&stream);
+    let ranged = enc.finish();
+    let use_range = match force {
+        Some(k) => k == ENTROPY_RANGE,
+        None => ranged.len() <= deflated.len(),
+    };
+    let (kind, body) = if use_range {
+        (ENTROPY_RANGE, ranged)
+    } else {
+        (ENTROPY_DEFLATE, deflated)
+    };
     let mut out = Vec::new();
     out.put_u8(dq.coding);
     out.put_u8(PRED_MED);
-    out.put_u16(0);
+    out.put_u8(kind);
+    out.put_u8(0);
     out.put_f64(dq.step);
     out.put_f64(dq.offset);
     out.put_f64(bound);
     out.put_u64(valid);
-    out.extend_from_slice(&entropy::deflate(&stream));
+    out.extend_from_slice(&body);
     out
+}
+
+/// Where the residuals come from while decoding.
+enum Residuals<'a> {
+    Varints(varint::VarintReader<'a>),
+    Range(
+        crate::entropy::range::Decoder<'a>,
+        Vec<crate::entropy::range::IntModel>,
+    ),
 }
 
 /// Decode a grid-section payload into sample values (invalid samples get the nodata fill).
@@ -255,7 +321,11 @@ pub fn decode(payload: &[u8], header: &Header, mask: Option<&[bool]>) -> Result<
     if pred != PRED_NONE && pred != PRED_MED {
         return Err(r.corrupt(format!("predictor {pred} is not defined")));
     }
-    if r.u16("reserved")? != 0 {
+    let ent = r.u8("entropy coder")?;
+    if ent > ENTROPY_RANGE {
+        return Err(r.corrupt(format!("entropy coder {ent} is not defined")));
+    }
+    if r.u8("reserved")? != 0 {
         return Err(r.corrupt("reserved field is not zero"));
     }
     let step = r.finite_f64("step")?;
@@ -275,8 +345,18 @@ pub fn decode(payload: &[u8], header: &Header, mask: Option<&[bool]>) -> Result<
         return Err(r.corrupt(format!("holds {valid} samples, the mask says {mask_valid}")));
     }
     let rest = r.take(r.remaining(), "residuals")?;
-    let stream = entropy::inflate(rest, mask_valid.saturating_mul(10), "grid section")?;
-    let mut vr = varint::VarintReader::new(&stream, "grid section residuals");
+    let stream;
+    let mut src = if ent == ENTROPY_DEFLATE {
+        stream = entropy::inflate(rest, mask_valid.saturating_mul(10), "grid section")?;
+        Residuals::Varints(varint::VarintReader::new(&stream, "grid section residuals"))
+    } else {
+        Residuals::Range(
+            crate::entropy::range::Decoder::new(rest)?,
+            (0..CONTEXTS)
+                .map(|_| crate::entropy::range::IntModel::new())
+                .collect(),
+        )
+    };
     let dq = Dequant {
         coding,
         step,
@@ -293,7 +373,11 @@ pub fn decode(payload: &[u8], header: &Header, mask: Option<&[bool]>) -> Result<
             0
         };
         if mask.is_none_or(|m| m[i]) {
-            let c = p.wrapping_add(vr.i64()?);
+            let res = match &mut src {
+                Residuals::Varints(vr) => vr.i64()?,
+                Residuals::Range(dec, models) => models[context(&codes, w, i)].decode(dec)?,
+            };
+            let c = p.wrapping_add(res);
             codes[i] = c;
             out[i] = dq.value(c).ok_or_else(|| {
                 Error::corrupt(format!(
@@ -305,6 +389,61 @@ pub fn decode(payload: &[u8], header: &Header, mask: Option<&[bool]>) -> Result<
             out[i] = fill;
         }
     }
-    vr.finish()?;
+    match src {
+        Residuals::Varints(vr) => vr.finish()?,
+        Residuals::Range(dec, _) => dec.finish()?,
+    }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::raster::Raster;
+
+    #[test]
+    fn both_residual_codings_decode_to_the_same_samples() {
+        let data: Vec<f64> = (0..37 * 23)
+            .map(|i| ((i * 7919) % 1013) as f64 + if i % 11 == 0 { f64::NAN } else { 0.0 })
+            .collect();
+        let r = Raster::from_values(37, 23, data, None, SampleType::I16).unwrap();
+        let header = crate::container::Header {
+            width: 37,
+            height: 23,
+            sample_type: SampleType::I16,
+            primary: 0,
+            mapping: Default::default(),
+            nodata: None,
+            range: r.valid_range(),
+            georef: None,
+        };
+        let codes: Vec<i64> = r
+            .data
+            .iter()
+            .map(|&v| if v.is_nan() { 0 } else { v as i64 })
+            .collect();
+        let dq = Dequant {
+            coding: CODING_INT,
+            step: 1.0,
+            offset: 0.0,
+            f32_out: false,
+        };
+        for kind in [ENTROPY_DEFLATE, ENTROPY_RANGE] {
+            let payload = write_payload_as(&r, dq, codes.clone(), 0.0, Some(kind));
+            assert_eq!(payload[2], kind);
+            let back = decode(&payload, &header, r.mask.as_deref()).unwrap();
+            for (i, &b) in back.iter().enumerate() {
+                if r.is_valid(i) {
+                    assert_eq!(b, r.data[i]);
+                }
+            }
+            // Every truncation of the residual stream is an error.
+            for cut in 48..payload.len() {
+                assert!(
+                    decode(&payload[..cut], &header, r.mask.as_deref()).is_err(),
+                    "kind {kind} cut {cut}"
+                );
+            }
+        }
+    }
 }
