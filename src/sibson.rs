@@ -127,12 +127,7 @@ impl Surface {
             s.mark.resize(nt, 0);
             s.slot.resize(nt, 0);
         }
-        s.stamp = s.stamp.wrapping_add(1);
-        if s.stamp == 0 {
-            s.mark.iter_mut().for_each(|m| *m = 0);
-            s.stamp = 1;
-        }
-        let stamp = s.stamp;
+        let stamp = crate::triangulation::next_stamp(&mut s.stamp, &mut s.mark);
         s.cavity.clear();
         s.stack.clear();
         s.mark[t as usize] = stamp;

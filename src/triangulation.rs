@@ -90,6 +90,17 @@ pub fn incircle_exact(a: [i64; 2], b: [i64; 2], c: [i64; 2], d: [i64; 2]) -> i12
     al * (bdx * cdy - bdy * cdx) + bl * (cdx * ady - cdy * adx) + cl * (adx * bdy - ady * bdx)
 }
 
+/// Advance a visit stamp for `marks` (entries equal to the returned stamp are "visited");
+/// on wrap-around every mark is cleared so no stale entry can match.
+pub(crate) fn next_stamp(stamp: &mut u32, marks: &mut [u32]) -> u32 {
+    *stamp = stamp.wrapping_add(1);
+    if *stamp == 0 {
+        marks.iter_mut().for_each(|m| *m = 0);
+        *stamp = 1;
+    }
+    *stamp
+}
+
 /// An incremental Delaunay triangulation. Vertex ids are insertion indices.
 #[derive(Clone, Debug, Default)]
 pub struct Triangulation {
@@ -367,12 +378,7 @@ impl Triangulation {
     /// connect `id` to the boundary of that cavity.
     fn insert_from(&mut self, id: u32, start: u32) {
         let p = self.pts[id as usize];
-        self.stamp = self.stamp.wrapping_add(1);
-        if self.stamp == 0 {
-            self.mark.iter_mut().for_each(|m| *m = 0);
-            self.stamp = 1;
-        }
-        let stamp = self.stamp;
+        let stamp = next_stamp(&mut self.stamp, &mut self.mark);
         self.cavity.clear();
         self.stack.clear();
         self.boundary.clear();
