@@ -446,6 +446,22 @@ pub fn default_threads() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
+/// The most frequent valid value when it covers at least 5 % of the valid samples.
+fn modal_value(r: &Raster) -> Option<f64> {
+    let mut counts: std::collections::HashMap<u64, usize> = std::collections::HashMap::new();
+    let mut valid = 0usize;
+    for (i, &v) in r.data.iter().enumerate() {
+        if r.is_valid(i) {
+            *counts.entry(v.to_bits()).or_default() += 1;
+            valid += 1;
+        }
+    }
+    let (bits, n) = counts
+        .into_iter()
+        .max_by_key(|&(b, n)| (n, std::cmp::Reverse(b)))?;
+    (n * 20 >= valid).then(|| f64::from_bits(bits))
+}
+
 /// Encode a raster as a sites-section payload; returns it with its statistics.
 pub fn encode(
     r: &Raster,
@@ -465,7 +481,11 @@ pub fn encode(
     let range = r
         .valid_range()
         .map_or(1.0, |(lo, hi)| (hi - lo).max(f64::MIN_POSITIVE));
-    let offset = r.valid_range().map_or(0.0, |(lo, _)| lo);
+    // Put the height lattice on the most common value (sea level, a lake, a nodata-filled
+    // plain) so sites in flat regions are exact; fall back to the minimum.
+    let offset = modal_value(r)
+        .or(r.valid_range().map(|(lo, _)| lo))
+        .unwrap_or(0.0);
     // The error the surface may have before output rounding, so that the rounded output
     // still meets the bound: integer outputs round to the nearest code.
     let inner = params.max_error.map(|e| match r.sample_type {
