@@ -412,11 +412,7 @@ pub fn decode(bytes: &[u8]) -> Result<Raster> {
 pub fn decode_with(bytes: &[u8], opts: &DecodeOptions) -> Result<Raster> {
     let mut rd = container::ContainerReader::new(std::io::Cursor::new(bytes), opts.limits)?;
     let header = rd.header().clone();
-    let n = header.samples() as usize;
-    let mask = match rd.find(SectionKind::Mask) {
-        Some(i) => Some(container::mask::decode(&rd.read_section(i)?, n)?),
-        None => None,
-    };
+    let mask = rd.read_mask()?;
     let idx = opts.section.unwrap_or(header.primary as usize);
     let entry = rd
         .entries()
@@ -556,11 +552,7 @@ pub fn info(bytes: &[u8], limits: Limits) -> Result<FileInfo> {
 pub fn sites_section(bytes: &[u8], limits: Limits) -> Result<(Header, Option<Vec<bool>>, Vec<u8>)> {
     let mut rd = container::ContainerReader::new(std::io::Cursor::new(bytes), limits)?;
     let header = rd.header().clone();
-    let n = header.samples() as usize;
-    let mask = match rd.find(SectionKind::Mask) {
-        Some(i) => Some(container::mask::decode(&rd.read_section(i)?, n)?),
-        None => None,
-    };
+    let mask = rd.read_mask()?;
     let idx = match rd.entries().get(header.primary as usize) {
         Some(e) if e.kind == SectionKind::Sites => header.primary as usize,
         _ => rd

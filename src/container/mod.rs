@@ -367,6 +367,15 @@ impl<R: Read + Seek> ContainerReader<R> {
         self.entries.iter().position(|e| e.kind == kind)
     }
 
+    /// The validity mask (from the first mask section), or `None` when every sample is valid.
+    pub fn read_mask(&mut self) -> Result<Option<Vec<bool>>> {
+        let n = self.header.samples() as usize;
+        match self.find(SectionKind::Mask) {
+            Some(i) => Ok(Some(mask::decode(&self.read_section(i)?, n)?)),
+            None => Ok(None),
+        }
+    }
+
     /// Read section `i`'s payload and check its checksum.
     pub fn read_section(&mut self, i: usize) -> Result<Vec<u8>> {
         let e = self

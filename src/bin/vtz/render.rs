@@ -2,7 +2,7 @@
 
 use crate::common::{self, RasterOpts, Ui};
 use std::path::{Path, PathBuf};
-use vtz::container::{ContainerReader, Limits, SectionKind};
+use vtz::container::Limits;
 use vtz::render::ShadeOptions;
 use vtz::{Error, Result};
 
@@ -88,29 +88,11 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     Ok(())
 }
 
-/// The (column, row) of every site in the primary section of a .vtz file.
+/// The (column, row) of every site of a .vtz file's sites section.
 fn site_positions(path: &Path) -> Result<Vec<(usize, usize)>> {
     let bytes = common::read_file(path)?;
-    let mut rd = ContainerReader::new(std::io::Cursor::new(&bytes[..]), Limits::default())?;
-    let header = rd.header().clone();
-    let primary = header.primary as usize;
-    let kind = rd
-        .entries()
-        .get(primary)
-        .ok_or_else(|| Error::corrupt(format!("the primary section {primary} is missing")))?
-        .kind;
-    if kind != SectionKind::Sites {
-        return Err(Error::invalid(format!(
-            "--sites needs a sites section, but the primary section is a {} section",
-            kind.name()
-        )));
-    }
-    let n = header.samples() as usize;
-    let mask = match rd.find(SectionKind::Mask) {
-        Some(i) => Some(vtz::container::mask::decode(&rd.read_section(i)?, n)?),
-        None => None,
-    };
-    let payload = rd.read_section(primary)?;
+    let (header, mask, payload) = vtz::sites_section(&bytes, Limits::default())
+        .map_err(|e| e.context("--sites needs a .vtz with a sites section"))?;
     let d = vtz::sites::decode_sites(&payload, &header, mask.as_deref(), None, None)?;
     let w = header.width as usize;
     Ok(d.sites
