@@ -16,8 +16,10 @@
 pub mod container;
 pub mod entropy;
 pub mod error;
+pub mod fis;
 pub mod fsio;
 pub mod grid;
+pub mod haar;
 pub mod metrics;
 pub mod raster;
 pub mod render;
@@ -78,8 +80,12 @@ pub enum Method {
     Best,
     /// Greedy Voronoi/Sibson sites (needs a bound, an RMSE or a site count).
     Sibson,
-    /// Every sample, predicted and quantized (the only lossless method).
+    /// Every sample, predicted and quantized (lossless or within a bound).
     Grid,
+    /// Fractal interpolation surface on every k-th sample (the fractal-interpolation paper).
+    Fis,
+    /// 2-D Haar wavelet, quantized and range coded (the Voronoi paper's baseline).
+    Haar,
 }
 
 impl Method {
@@ -88,12 +94,34 @@ impl Method {
             "best" => Method::Best,
             "sibson" | "sites" => Method::Sibson,
             "grid" => Method::Grid,
+            "fis" | "fractal" => Method::Fis,
+            "haar" | "wavelet" => Method::Haar,
             o => {
                 return Err(Error::invalid(format!(
-                    "unknown method '{o}' (best, sibson, grid)"
+                    "unknown method '{o}' (best, sibson, grid, fis, haar)"
                 )));
             }
         })
+    }
+
+    /// The method's name as the CLI spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Best => "best",
+            Method::Sibson => "sibson",
+            Method::Grid => "grid",
+            Method::Fis => "fis",
+            Method::Haar => "haar",
+        }
+    }
+
+    fn of_kind(k: SectionKind) -> Method {
+        match k {
+            SectionKind::Sites => Method::Sibson,
+            SectionKind::Fis => Method::Fis,
+            SectionKind::Haar => Method::Haar,
+            _ => Method::Grid,
+        }
     }
 }
 
@@ -110,6 +138,13 @@ pub struct EncodeOptions {
     /// Sibson: refinement norm.
     pub norm: sites::Norm,
     pub method: Method,
+    /// Also write these methods' sections (for comparison); the smallest of all becomes the
+    /// primary section, the others are optional sections `vtz decode --section` can pick.
+    pub also: Vec<Method>,
+    /// FIS: subgrid spacing k (default: the cheapest k that meets the bound).
+    pub fis_k: Option<usize>,
+    /// FIS: one fixed vertical scaling factor (the paper's 0.02) instead of fitted ones.
+    pub fis_s: Option<f64>,
     /// Sibson: height step as a multiple of the error target (default 1).
     pub step_factor: Option<f64>,
     /// Aim for a file of at most this many bytes: the smallest max-error bound (found by
@@ -312,6 +347,106 @@ fn encode_to_size(
     Ok(best)
 }
 
+/// One encoded representation, before it goes into the container.
+struct Candidate {
+    kind: SectionKind,
+    payload: Vec<u8>,
+    bound: f64,
+    stats: Option<sites::SitesStats>,
+}
+
+/// Encode `raster` with one concrete method (not `Best`).
+fn encode_method(
+    m: Method,
+    raster: &Raster,
+    header: &Header,
+    opts: &EncodeOptions,
+    e: Option<f64>,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Candidate> {
+    let sibson_asked = opts.sites.is_some() || opts.rmse.is_some();
+    if m != Method::Sibson && sibson_asked {
+        return Err(Error::invalid("--sites and --rmse need the sibson method"));
+    }
+    if m != Method::Fis && (opts.fis_k.is_some() || opts.fis_s.is_some()) {
+        return Err(Error::invalid("the FIS options need the fis method"));
+    }
+    let lossless = e.is_none_or(|e| e == 0.0);
+    Ok(match m {
+        Method::Sibson => {
+            if lossless && !sibson_asked {
+                return Err(Error::invalid(
+                    "the sibson method needs --max-error, --rmse or --sites",
+                ));
+            }
+            let sp = sites::SitesParams {
+                max_error: e,
+                rmse: opts.rmse.map(|b| b.absolute(header.range)),
+                max_sites: opts.sites,
+                norm: opts.norm,
+                step_factor: opts.step_factor,
+            };
+            let (payload, stats) = sites::encode(raster, header, &sp, progress)?;
+            Candidate {
+                kind: SectionKind::Sites,
+                payload,
+                bound: stats.max_error,
+                stats: Some(stats),
+            }
+        }
+        Method::Grid => {
+            let (payload, bound) = grid::encode(
+                raster,
+                &grid::GridParams {
+                    max_error: e.unwrap_or(0.0),
+                },
+            )?;
+            Candidate {
+                kind: SectionKind::Grid,
+                payload,
+                bound,
+                stats: None,
+            }
+        }
+        Method::Haar => {
+            let (payload, bound) = haar::encode(
+                raster,
+                &haar::HaarParams {
+                    max_error: e.unwrap_or(0.0),
+                },
+            )?;
+            Candidate {
+                kind: SectionKind::Haar,
+                payload,
+                bound,
+                stats: None,
+            }
+        }
+        Method::Fis => {
+            if lossless && opts.fis_k.is_none() {
+                return Err(Error::invalid(
+                    "the fis method needs --max-error or --fis-k",
+                ));
+            }
+            let (payload, st) = fis::encode(
+                raster,
+                &fis::FisParams {
+                    max_error: e.filter(|&e| e > 0.0),
+                    k: opts.fis_k,
+                    fixed_s: opts.fis_s,
+                },
+            )?;
+            Candidate {
+                kind: SectionKind::Fis,
+                payload,
+                bound: st.max_error,
+                stats: None,
+            }
+        }
+        Method::Best => unreachable!("encode_method takes a concrete method"),
+    })
+}
+
 fn encode_once(
     raster: &Raster,
     opts: &EncodeOptions,
@@ -322,48 +457,62 @@ fn encode_once(
     let e = opts.max_error.map(|b| b.absolute(header.range));
     let sibson_asked = opts.sites.is_some() || opts.rmse.is_some();
     let lossless = e.is_none_or(|e| e == 0.0) && !sibson_asked;
-    if opts.method == Method::Sibson && lossless {
-        return Err(Error::invalid(
-            "the sibson method needs --max-error, --rmse or --sites",
-        ));
-    }
-    let try_sibson = match opts.method {
-        Method::Sibson => true,
-        Method::Grid => false,
-        Method::Best => !lossless,
-    };
-    let try_grid = match opts.method {
-        Method::Grid => true,
-        Method::Sibson => false,
-        Method::Best => !sibson_asked,
-    };
-    if opts.method == Method::Grid && sibson_asked {
-        return Err(Error::invalid("--sites and --rmse need the sibson method"));
-    }
-    let mut best: Option<(SectionKind, Vec<u8>, f64, Option<sites::SitesStats>)> = None;
-    if try_sibson {
-        let sp = sites::SitesParams {
-            max_error: e,
-            rmse: opts.rmse.map(|b| b.absolute(header.range)),
-            max_sites: opts.sites,
-            norm: opts.norm,
-            step_factor: opts.step_factor,
+    let mut cands: Vec<Candidate> = Vec::new();
+    if opts.method == Method::Best {
+        // Every method that can meet the request; the smallest wins. A method that cannot
+        // (e.g. FIS at a bound no subgrid reaches) simply drops out.
+        let tries: &[Method] = if sibson_asked {
+            &[Method::Sibson]
+        } else if lossless {
+            &[Method::Grid]
+        } else {
+            &[Method::Sibson, Method::Grid, Method::Haar, Method::Fis]
         };
-        let (payload, stats) = sites::encode(raster, &header, &sp, progress)?;
-        best = Some((SectionKind::Sites, payload, stats.max_error, Some(stats)));
-    }
-    if try_grid {
-        let (g, bound) = grid::encode(
-            raster,
-            &grid::GridParams {
-                max_error: e.unwrap_or(0.0),
-            },
-        )?;
-        if best.as_ref().is_none_or(|b| g.len() < b.1.len()) {
-            best = Some((SectionKind::Grid, g, bound, None));
+        let mut last_err = None;
+        for &m in tries {
+            match encode_method(m, raster, &header, opts, e, progress) {
+                Ok(c) => cands.push(c),
+                Err(err) => last_err = Some(err),
+            }
         }
+        if cands.is_empty() {
+            return Err(last_err.expect("one method was tried"));
+        }
+        let i = (0..cands.len())
+            .min_by_key(|&i| cands[i].payload.len())
+            .expect("non-empty");
+        cands = vec![cands.swap_remove(i)];
+    } else {
+        cands.push(encode_method(
+            opts.method,
+            raster,
+            &header,
+            opts,
+            e,
+            progress,
+        )?);
     }
-    let (kind, payload, bound, stats) = best.expect("one method was tried");
+    for &m in &opts.also {
+        if m == Method::Best {
+            return Err(Error::invalid("'best' cannot be an additional section"));
+        }
+        if cands.iter().any(|c| Method::of_kind(c.kind) == m) {
+            continue;
+        }
+        let mut o = opts.clone();
+        if m != Method::Sibson {
+            o.sites = None;
+            o.rmse = None;
+        }
+        if m != Method::Fis {
+            o.fis_k = None;
+            o.fis_s = None;
+        }
+        cands.push(encode_method(m, raster, &header, &o, e, progress)?);
+    }
+    let primary = (0..cands.len())
+        .min_by_key(|&i| cands[i].payload.len())
+        .expect("non-empty");
     let mut sections = Vec::new();
     if let Some(m) = &raster.mask {
         if m.iter().any(|&b| !b) {
@@ -374,12 +523,20 @@ fn encode_once(
             });
         }
     }
-    header.primary = sections.len() as u16;
-    sections.push(Section {
-        kind,
-        flags: SF_REQUIRED,
-        payload,
-    });
+    header.primary = (sections.len() + primary) as u16;
+    let report = EncodeReport {
+        max_error: cands[primary].bound,
+        method: Method::of_kind(cands[primary].kind),
+        sites: cands[primary].stats.clone(),
+    };
+    for (i, c) in cands.into_iter().enumerate() {
+        sections.push(Section {
+            kind: c.kind,
+            // Comparison sections are optional: a decoder that lacks their method skips them.
+            flags: if i == primary { SF_REQUIRED } else { 0 },
+            payload: c.payload,
+        });
+    }
     if let Some(meta) = &opts.metadata {
         serde_json::from_str::<serde_json::Value>(meta)
             .map_err(|e| Error::invalid(format!("metadata is not JSON: {e}")))?;
@@ -389,18 +546,7 @@ fn encode_once(
             payload: meta.as_bytes().to_vec(),
         });
     }
-    Ok((
-        container::write(&header, &sections),
-        EncodeReport {
-            max_error: bound,
-            method: if kind == SectionKind::Sites {
-                Method::Sibson
-            } else {
-                Method::Grid
-            },
-            sites: stats,
-        },
-    ))
+    Ok((container::write(&header, &sections), report))
 }
 
 /// Decode `.vtz` bytes into a raster (the primary section).
@@ -499,6 +645,20 @@ pub fn decode_with(bytes: &[u8], opts: &DecodeOptions) -> Result<Raster> {
                 },
             )?
         }
+        SectionKind::Fis | SectionKind::Haar => {
+            if opts.sites.is_some() || opts.levels.is_some() || opts.scale.is_some() {
+                return Err(Error::invalid(format!(
+                    "--sites, --level and --scale need a sites section (this one is {})",
+                    entry.kind.name()
+                )));
+            }
+            let full = if entry.kind == SectionKind::Fis {
+                fis::decode(&payload, &header, mask.as_deref())?
+            } else {
+                haar::decode(&payload, &header, mask.as_deref())?
+            };
+            crop(&full, w, win)
+        }
         k => {
             return Err(Error::unsupported(format!(
                 "decoding a {} section is not implemented by this version",
@@ -526,6 +686,16 @@ fn crop<T: Copy>(v: &[T], width: usize, win: Window) -> Vec<T> {
         out.extend_from_slice(&v[y * width + win.x..y * width + win.x + win.width]);
     }
     out
+}
+
+/// The section kind a method writes (`Best` has none: it names the grid, the fallback).
+pub fn section_kind(m: Method) -> SectionKind {
+    match m {
+        Method::Sibson => SectionKind::Sites,
+        Method::Fis => SectionKind::Fis,
+        Method::Haar => SectionKind::Haar,
+        Method::Grid | Method::Best => SectionKind::Grid,
+    }
 }
 
 /// A file's header and section list, for `vtz info`.

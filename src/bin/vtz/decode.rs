@@ -14,9 +14,10 @@ pub struct Args {
     /// Output format, when the extension does not tell.
     #[arg(long, value_name = "FMT")]
     pub format: Option<String>,
-    /// Decode this section (index from `vtz info`) instead of the primary one.
-    #[arg(long, value_name = "N")]
-    pub section: Option<usize>,
+    /// Decode this section instead of the primary one: its index from `vtz info`, or its
+    /// method (sibson, grid, fis, haar).
+    #[arg(long, value_name = "N|METHOD")]
+    pub section: Option<String>,
     /// Sites section: decode only the first N sites (a coarser surface).
     #[arg(long, value_name = "N")]
     pub sites: Option<usize>,
@@ -40,8 +41,29 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let format = common::parse_format(a.format.as_deref())?;
     common::check_distinct(&a.input, &a.output)?;
     let bytes = common::read_file(&a.input)?;
+    let section = match a.section.as_deref() {
+        None => None,
+        Some(s) => Some(match s.parse::<usize>() {
+            Ok(i) => i,
+            Err(_) => {
+                let m = vtz::Method::parse(s)?;
+                let info = vtz::info(&bytes, Default::default())
+                    .map_err(|e| e.context(a.input.display()))?;
+                info.sections
+                    .iter()
+                    .position(|e| e.kind == vtz::section_kind(m))
+                    .ok_or_else(|| {
+                        vtz::Error::invalid(format!(
+                            "{} has no {} section",
+                            a.input.display(),
+                            m.name()
+                        ))
+                    })?
+            }
+        }),
+    };
     let opts = DecodeOptions {
-        section: a.section,
+        section,
         sites: a.sites,
         levels: a.level,
         window: a.window.as_deref().map(vtz::Window::parse).transpose()?,

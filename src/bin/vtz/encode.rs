@@ -29,9 +29,17 @@ pub struct Args {
     /// Sibson sites: stop when the RMSE is at most E data units or E% of the range.
     #[arg(long, value_name = "E")]
     pub rmse: Option<String>,
-    /// Representation: best (smallest that meets the request), sibson, grid.
+    /// Representation: best (smallest that meets the request), sibson, grid, fis, haar; a
+    /// comma list (sibson,fis,haar) writes each as a section, the smallest as the primary.
     #[arg(long, default_value = "best")]
     pub method: String,
+    /// FIS: interpolation points every K samples (default: the cheapest K that meets the bound).
+    #[arg(long, value_name = "K")]
+    pub fis_k: Option<usize>,
+    /// FIS: one vertical scaling factor S for all rectangles (the paper used 0.02) instead of
+    /// fitted per-rectangle factors.
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub fis_s: Option<f64>,
     /// Sibson: height quantization step as a multiple of the error target (tuning).
     #[arg(long, value_name = "F", hide = true)]
     pub step_factor: Option<f64>,
@@ -87,12 +95,25 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         }
         (None, None) => None,
     };
+    let methods = a
+        .method
+        .split(',')
+        .map(vtz::Method::parse)
+        .collect::<Result<Vec<_>>>()?;
+    if methods.len() > 1 && methods.contains(&vtz::Method::Best) {
+        return Err(vtz::Error::invalid(
+            "'best' cannot be part of a method list",
+        ));
+    }
     let opts = EncodeOptions {
         max_error: bound,
         rmse: a.rmse.as_deref().map(ErrorBound::parse).transpose()?,
         sites: a.sites,
         norm,
-        method: vtz::Method::parse(&a.method)?,
+        method: methods[0],
+        also: methods[1..].to_vec(),
+        fis_k: a.fis_k,
+        fis_s: a.fis_s,
         step_factor: a.step_factor,
         target_bytes,
         ..Default::default()
@@ -114,7 +135,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             "ratio": raster.sample_type.bits() as f64 / bps.max(f64::MIN_POSITIVE),
             "max_error": report.max_error, "max_error_pct": pct,
             "lossless": report.max_error == 0.0,
-            "method": format!("{:?}", report.method).to_lowercase(),
+            "method": report.method.name(),
             "sites": report.sites.as_ref().map(|s| s.sites),
             "levels": report.sites.as_ref().map(|s| s.levels.clone()),
             "position_bits_per_site": report.sites.as_ref().map(|s| s.position_bits / s.sites.max(1) as f64),
@@ -129,7 +150,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         };
         let what = match &report.sites {
             Some(s) => format!("{what}, {} sites in {} levels", s.sites, s.levels.len()),
-            None => format!("{what}, grid"),
+            None => format!("{what}, {}", report.method.name()),
         };
         ui.say(format!(
             "{}: {n} bytes, {bps:.3} bits/sample ({:.1}:1 against {}), {what}",
