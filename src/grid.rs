@@ -301,6 +301,36 @@ fn write_payload_as(
     out
 }
 
+/// Range-code a fully valid lattice of integer codes, `w` wide, with the grid section's
+/// prediction and contexts (used by the FIS section for its subgrid heights).
+pub(crate) fn encode_lattice(enc: &mut crate::entropy::range::Encoder, codes: &[i64], w: usize) {
+    let mut models: Vec<_> = (0..CONTEXTS)
+        .map(|_| crate::entropy::range::IntModel::new())
+        .collect();
+    for i in 0..codes.len() {
+        let res = codes[i].wrapping_sub(predict(codes, w, i));
+        models[context(codes, w, i)].encode(enc, res);
+    }
+}
+
+/// Decode `n` codes written by [`encode_lattice`].
+pub(crate) fn decode_lattice(
+    dec: &mut crate::entropy::range::Decoder,
+    w: usize,
+    n: usize,
+) -> Result<Vec<i64>> {
+    let mut models: Vec<_> = (0..CONTEXTS)
+        .map(|_| crate::entropy::range::IntModel::new())
+        .collect();
+    let mut codes = vec![0i64; n];
+    for i in 0..n {
+        let p = predict(&codes, w, i);
+        let res = models[context(&codes, w, i)].decode(dec)?;
+        codes[i] = p.wrapping_add(res);
+    }
+    Ok(codes)
+}
+
 /// Where the residuals come from while decoding.
 enum Residuals<'a> {
     Varints(varint::VarintReader<'a>),

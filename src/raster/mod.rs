@@ -274,6 +274,44 @@ impl Raster {
         self.nodata.unwrap_or(f64::NAN)
     }
 
+    /// The samples with every invalid one replaced by a nearby valid value (the previous
+    /// valid sample of its row, else the next; rows without any copy the nearest filled
+    /// row): a smooth stand-in for transforms that need every sample (FIS, Haar).
+    pub fn filled(&self) -> Vec<f64> {
+        let (w, h) = (self.width, self.height);
+        let mut out = self.data.clone();
+        let Some(mask) = &self.mask else {
+            return out;
+        };
+        let mut row_ok = vec![false; h];
+        for y in 0..h {
+            let row = &mut out[y * w..(y + 1) * w];
+            let m = &mask[y * w..(y + 1) * w];
+            let Some(first) = m.iter().position(|&b| b) else {
+                continue;
+            };
+            row_ok[y] = true;
+            let mut last = row[first];
+            for x in 0..w {
+                if m[x] {
+                    last = row[x];
+                } else {
+                    row[x] = last;
+                }
+            }
+        }
+        let Some(any) = row_ok.iter().position(|&b| b) else {
+            return vec![0.0; out.len()];
+        };
+        for (y, &ok) in row_ok.iter().enumerate() {
+            if !ok {
+                let src = if y < any { any } else { y - 1 };
+                out.copy_within(src * w..(src + 1) * w, y * w);
+            }
+        }
+        out
+    }
+
     /// Check the invariants listed on the type.
     pub fn validate(&self) -> Result<()> {
         if self.width == 0 || self.height == 0 {
