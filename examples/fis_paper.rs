@@ -60,9 +60,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let range = (hi - lo).max(f64::MIN_POSITIVE);
         let shade = ShadeOptions::default();
         let orig = hillshade_image(&r, &shade)?;
+        let mut rows = Vec::new();
         for k in [8usize, 16] {
             let mut tiles = vec![orig.clone()];
-            for fixed in [Some(0.02), None] {
+            let mut fitted_file = 0usize;
+            for fixed in [Some(0.0), Some(0.02), None] {
                 let (payload, st) = encode(
                     &r,
                     &FisParams {
@@ -86,14 +88,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 back.data = data;
                 let c = vtz::metrics::compare(&r, &back)?;
                 assert!((c.max_error - st.max_error).abs() <= 1e-9 * range);
-                tiles.push(hillshade_image(&back, &shade)?);
+                if fixed != Some(0.0) {
+                    tiles.push(hillshade_image(&back, &shade)?);
+                }
+                // The same surface as a whole .vtz file, for the size comparison below.
+                let file = vtz::encode(
+                    &r,
+                    &vtz::EncodeOptions {
+                        method: vtz::Method::Fis,
+                        fis_k: Some(k),
+                        fis_s: fixed,
+                        ..Default::default()
+                    },
+                )?;
+                fitted_file = file.len();
                 println!(
                     "| {label} | {k} | {} ({:.2} %) | {} | {} | {:.4} | {:.3} | {:.3} | {:.2} | {:.2} | {:.3} | {:.3} |",
                     st.points,
                     100.0 * st.points as f64 / (257.0 * 257.0),
                     fixed.map_or("fitted".to_string(), |s| s.to_string()),
-                    payload.len(),
-                    8.0 * payload.len() as f64 / (257.0 * 257.0),
+                    file.len(),
+                    8.0 * file.len() as f64 / (257.0 * 257.0),
                     c.rmse,
                     100.0 * c.rmse / range,
                     c.max_error,
@@ -102,17 +117,45 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     st.mean_abs_s
                 );
             }
-            let gap = 4u32;
-            let w = tiles.iter().map(|t| t.width()).sum::<u32>() + gap * (tiles.len() as u32 - 1);
-            let mut img = image::RgbImage::from_pixel(w, tiles[0].height(), image::Rgb([255; 3]));
-            let mut x = 0;
-            for t in &tiles {
-                image::imageops::replace(&mut img, t, x as i64, 0);
-                x += t.width() + gap;
-            }
-            let png = vtz::render::encode_png(&img, &[])?;
-            std::fs::write(out.join(format!("fis_{label}_k{k}.png")), png)?;
+            // Sibson sites in a file of the same size as the fitted FIS, for scale.
+            let (file, rep) = vtz::encode_report(
+                &r,
+                &vtz::EncodeOptions {
+                    method: vtz::Method::Sibson,
+                    target_bytes: Some(fitted_file as u64),
+                    ..Default::default()
+                },
+            )?;
+            let back = vtz::decode(&file)?;
+            let c = vtz::metrics::compare(&r, &back)?;
+            println!(
+                "| {label} | {k} | {} sites | sibson, same size | {} | {:.4} | {:.3} | {:.3} | {:.2} | {:.2} | | |",
+                rep.sites.map_or(0, |s| s.sites),
+                file.len(),
+                8.0 * file.len() as f64 / (257.0 * 257.0),
+                c.rmse,
+                100.0 * c.rmse / range,
+                c.max_error,
+                100.0 * c.max_error / range,
+            );
+            rows.push(tiles);
         }
+        // One picture per crop: rows k = 8 and k = 16; columns original | s = 0.02 | fitted.
+        let gap = 4u32;
+        let (tw, th) = (rows[0][0].width(), rows[0][0].height());
+        let mut img = image::RgbImage::from_pixel(
+            3 * tw + 2 * gap,
+            2 * th + gap,
+            image::Rgb([255; 3]),
+        );
+        for (ry, tiles) in rows.iter().enumerate() {
+            for (cx, t) in tiles.iter().enumerate() {
+                let (x, y) = (cx as u32 * (tw + gap), ry as u32 * (th + gap));
+                image::imageops::replace(&mut img, t, x as i64, y as i64);
+            }
+        }
+        let png = vtz::render::encode_png(&img, &[])?;
+        std::fs::write(out.join(format!("fis_{label}.png")), png)?;
     }
     Ok(())
 }

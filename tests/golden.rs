@@ -32,7 +32,8 @@ fn source() -> vtz::Raster {
     vtz::decode_with(&bytes, &opts).unwrap()
 }
 
-fn cases() -> Vec<(&'static str, EncodeOptions)> {
+/// (name, options, bound checked against the source; 0 = identical).
+fn cases() -> Vec<(&'static str, EncodeOptions, f64)> {
     vec![
         (
             "v1_kauai_crop_grid",
@@ -40,6 +41,7 @@ fn cases() -> Vec<(&'static str, EncodeOptions)> {
                 method: Method::Grid,
                 ..Default::default()
             },
+            0.0,
         ),
         (
             "v1_kauai_crop_sites",
@@ -48,6 +50,25 @@ fn cases() -> Vec<(&'static str, EncodeOptions)> {
                 max_error: Some(ErrorBound::Abs(8.0)),
                 ..Default::default()
             },
+            8.0,
+        ),
+        (
+            "v1_kauai_crop_fis",
+            EncodeOptions {
+                method: Method::Fis,
+                max_error: Some(ErrorBound::Abs(60.0)),
+                ..Default::default()
+            },
+            60.0,
+        ),
+        (
+            "v1_kauai_crop_haar",
+            EncodeOptions {
+                method: Method::Haar,
+                max_error: Some(ErrorBound::Abs(8.0)),
+                ..Default::default()
+            },
+            8.0,
         ),
     ]
 }
@@ -62,7 +83,7 @@ fn as_f32_bytes(r: &vtz::Raster) -> Vec<u8> {
 #[test]
 fn golden_files_decode_to_their_expected_samples() {
     let bless = std::env::var_os("VTZ_BLESS_GOLDEN").is_some();
-    for (name, opts) in cases() {
+    for (name, opts, bound) in cases() {
         let vtz_path = dir().join(format!("{name}.vtz"));
         let exp_path = dir().join(format!("{name}.expected.f32"));
         if !vtz_path.exists() {
@@ -93,17 +114,17 @@ fn golden_files_decode_to_their_expected_samples() {
         // And the decode is within the bound it claims, against the source window.
         let c = vtz::metrics::compare(&source(), &r).unwrap();
         assert_eq!((c.lost, c.invented), (0, 0));
-        if name.ends_with("grid") {
-            assert!(c.identical);
+        if bound == 0.0 {
+            assert!(c.identical, "{name}");
         } else {
-            assert!(c.max_error <= 8.0, "{name}: {}", c.max_error);
+            assert!(c.max_error <= bound, "{name}: {}", c.max_error);
         }
     }
 }
 
 #[test]
 fn every_proper_prefix_of_the_golden_files_is_rejected() {
-    for (name, _) in cases() {
+    for (name, _, _) in cases() {
         let bytes = std::fs::read(dir().join(format!("{name}.vtz"))).unwrap();
         for n in 0..bytes.len() {
             assert!(
