@@ -145,6 +145,9 @@ pub struct EncodeOptions {
     pub fis_k: Option<usize>,
     /// FIS: one fixed vertical scaling factor (the paper's 0.02) instead of fitted ones.
     pub fis_s: Option<f64>,
+    /// Haar: a fixed coefficient quantizer step instead of a bound (what size targets
+    /// bisect, as the RMSE-optimal rate control for a wavelet).
+    pub haar_step: Option<f64>,
     /// Sibson: height step as a multiple of the error target (default 1).
     pub step_factor: Option<f64>,
     /// Aim for a file of at most this many bytes: the smallest max-error bound (found by
@@ -324,6 +327,42 @@ fn encode_to_size(
     if lossless.0.len() as u64 <= target || range <= 0.0 {
         return Ok(lossless);
     }
+    if opts.method == Method::Haar && opts.also.is_empty() {
+        // The wavelet's own rate control: the smallest coefficient step whose file fits.
+        let mut o = opts.clone();
+        o.target_bytes = None;
+        let mut try_step = |q: f64| {
+            o.haar_step = Some(q);
+            encode_once(raster, &o, &mut |_| {})
+        };
+        let (mut lo, mut hi) = (1.0f64, 1.0f64);
+        let mut best = try_step(hi)?;
+        while best.0.len() as u64 > target {
+            if hi > 1e12 {
+                return Err(Error::invalid(format!(
+                    "cannot fit in {target} bytes with the haar method"
+                )));
+            }
+            lo = hi;
+            hi *= 4.0;
+            best = try_step(hi)?;
+        }
+        if hi > 1.0 {
+            const STEPS: usize = 16;
+            for k in 0..STEPS {
+                let mid = (lo * hi).sqrt();
+                let r = try_step(mid)?;
+                if r.0.len() as u64 <= target {
+                    hi = mid;
+                    best = r;
+                } else {
+                    lo = mid;
+                }
+                progress((k + 1) as f64 / STEPS as f64);
+            }
+        }
+        return Ok(best);
+    }
     let (mut lo, mut hi) = (range * 1e-6, range);
     let mut best = try_bound(hi)?;
     if best.0.len() as u64 > target {
@@ -371,6 +410,9 @@ fn encode_method(
     if m != Method::Fis && (opts.fis_k.is_some() || opts.fis_s.is_some()) {
         return Err(Error::invalid("the FIS options need the fis method"));
     }
+    if m != Method::Haar && opts.haar_step.is_some() {
+        return Err(Error::invalid("a Haar step needs the haar method"));
+    }
     let lossless = e.is_none_or(|e| e == 0.0);
     Ok(match m {
         Method::Sibson => {
@@ -409,12 +451,15 @@ fn encode_method(
             }
         }
         Method::Haar => {
-            let (payload, bound) = haar::encode(
-                raster,
-                &haar::HaarParams {
-                    max_error: e.unwrap_or(0.0),
-                },
-            )?;
+            let (payload, bound) = match opts.haar_step {
+                Some(step) => haar::encode_step(raster, step)?,
+                None => haar::encode(
+                    raster,
+                    &haar::HaarParams {
+                        max_error: e.unwrap_or(0.0),
+                    },
+                )?,
+            };
             Candidate {
                 kind: SectionKind::Haar,
                 payload,
@@ -507,6 +552,9 @@ fn encode_once(
         if m != Method::Fis {
             o.fis_k = None;
             o.fis_s = None;
+        }
+        if m != Method::Haar {
+            o.haar_step = None;
         }
         cands.push(encode_method(m, raster, &header, &o, e, progress)?);
     }
