@@ -143,11 +143,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // One picture per crop: rows k = 8 and k = 16; columns original | s = 0.02 | fitted.
         let gap = 4u32;
         let (tw, th) = (rows[0][0].width(), rows[0][0].height());
-        let mut img = image::RgbImage::from_pixel(
-            3 * tw + 2 * gap,
-            2 * th + gap,
-            image::Rgb([255; 3]),
-        );
+        let mut img =
+            image::RgbImage::from_pixel(3 * tw + 2 * gap, 2 * th + gap, image::Rgb([255; 3]));
         for (ry, tiles) in rows.iter().enumerate() {
             for (cx, t) in tiles.iter().enumerate() {
                 let (x, y) = (cx as u32 * (tw + gap), ry as u32 * (th + gap));

@@ -155,7 +155,10 @@ fn cli_writes_a_method_list_and_decodes_a_section_by_name() {
         .unwrap();
     assert_eq!(o.status.code(), Some(2));
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("no sibson section") && err.lines().count() == 1, "{err}");
+    assert!(
+        err.contains("no sibson section") && err.lines().count() == 1,
+        "{err}"
+    );
 }
 
 #[test]

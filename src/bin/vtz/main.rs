@@ -7,6 +7,7 @@ mod convert;
 mod decode;
 mod encode;
 mod info;
+mod rd;
 mod render;
 mod sites;
 
@@ -40,6 +41,8 @@ enum Cmd {
     Sites(sites::Args),
     /// Draw a raster or .vtz as a shaded relief PNG (optionally with its sites).
     Render(render::Args),
+    /// Rate–distortion table of methods × error bounds on rasters (CSV, plot, baseline check).
+    Rd(rd::Args),
 }
 
 fn main() -> ExitCode {
@@ -53,6 +56,7 @@ fn main() -> ExitCode {
         Cmd::Convert(a) => convert::run(a, &ui),
         Cmd::Sites(a) => sites::run(a, &ui),
         Cmd::Render(a) => render::run(a, &ui),
+        Cmd::Rd(a) => rd::run(a, &ui),
     };
     match res {
         Ok(()) => ExitCode::SUCCESS,
