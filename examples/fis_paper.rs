@@ -73,16 +73,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         fixed_s: fixed,
                     },
                 )?;
-                let header = vtz::container::Header {
-                    width: 257,
-                    height: 257,
-                    sample_type: r.sample_type,
-                    primary: 0,
-                    mapping: r.mapping,
-                    nodata: r.nodata,
-                    range: r.valid_range(),
-                    georef: None,
-                };
+                let header = vtz::container::Header::of(&r)?;
                 let data = vtz::fis::decode(&payload, &header, r.mask.as_deref())?;
                 let mut back = r.clone();
                 back.data = data;

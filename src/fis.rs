@@ -257,29 +257,89 @@ fn iterations_for(c: f64, spread: f64, tol: f64) -> u16 {
     }
 }
 
-/// The raster's samples padded to the geometry (last column and row repeated), nodata filled.
-fn padded(r: &Raster, g: &Geometry) -> Vec<f64> {
+/// The raster's samples padded to the geometry (last column and row repeated), nodata
+/// filled, and which padded samples are valid samples of the raster.
+fn padded(r: &Raster, g: &Geometry) -> (Vec<f64>, Vec<bool>) {
     let filled = r.filled();
     let mut out = Vec::with_capacity(g.wp * g.hp);
+    let mut valid = Vec::with_capacity(g.wp * g.hp);
     for y in 0..g.hp {
         let sy = y.min(g.h - 1);
         for x in 0..g.wp {
-            out.push(filled[sy * g.w + x.min(g.w - 1)]);
+            let i = sy * g.w + x.min(g.w - 1);
+            out.push(filled[i]);
+            valid.push(x < g.w && y < g.h && r.is_valid(i));
         }
     }
-    out
+    (out, valid)
+}
+
+/// Heights for vertices that are not valid samples (nodata, or padding beyond the raster):
+/// a few Gauss–Seidel sweeps of least squares, each vertex fitted to the valid samples of
+/// its (up to four) rectangles under bilinear interpolation, so the surface next to a void
+/// follows the data instead of a crude fill.
+fn fit_free_vertices(g: &Geometry, hpad: &[f64], valid: &[bool], z: &mut [f64]) {
+    let vw = g.m + 1;
+    let free: Vec<usize> = (0..g.vertices())
+        .filter(|&v| !valid[(v / vw) * g.k * g.wp + (v % vw) * g.k])
+        .collect();
+    let kf = g.k as f64;
+    for _ in 0..4 {
+        for &v in &free {
+            let (i, j) = (v % vw, v / vw);
+            let (mut num, mut den) = (0.0, 0.0);
+            for rj in j.saturating_sub(1)..=j.min(g.n - 1) {
+                for ri in i.saturating_sub(1)..=i.min(g.m - 1) {
+                    let zv =
+                        |a: usize, b: usize| if (a, b) == (i, j) { 0.0 } else { z[b * vw + a] };
+                    for y in rj * g.k..=(rj + 1) * g.k {
+                        for x in ri * g.k..=(ri + 1) * g.k {
+                            let t = y * g.wp + x;
+                            if !valid[t] {
+                                continue;
+                            }
+                            let u = (x - ri * g.k) as f64 / kf;
+                            let w = (y - rj * g.k) as f64 / kf;
+                            let wu = if i == ri { 1.0 - u } else { u };
+                            let ww = if j == rj { 1.0 - w } else { w };
+                            let wt = wu * ww;
+                            if wt == 0.0 {
+                                continue;
+                            }
+                            let others = bilinear(
+                                zv(ri, rj),
+                                zv(ri + 1, rj),
+                                zv(ri, rj + 1),
+                                zv(ri + 1, rj + 1),
+                                u,
+                                w,
+                            );
+                            num += wt * (hpad[t] - others);
+                            den += wt * wt;
+                        }
+                    }
+                }
+            }
+            if den > 0.0 {
+                z[v] = num / den;
+            }
+        }
+    }
 }
 
 /// Least-squares (collage) interior factors: for each rectangle, the `s_ij` minimising
 /// Σ (H(t) − bilinear_ij(t) − s0·d(p) − (s_ij − s0)·φ(p)·d(p))² over its samples, with
 /// `d = H − bilinear_D` taken from the original heights; clamped and quantized.
-fn fit_factors(g: &Geometry, hpad: &[f64], op0: &Operator, s0: f64) -> Vec<i64> {
+fn fit_factors(g: &Geometry, hpad: &[f64], valid: &[bool], op0: &Operator, s0: f64) -> Vec<i64> {
     let nr = g.rects();
     let mut num = vec![0.0; nr];
     let mut den = vec![0.0; nr];
     for y in 0..g.hp {
         for x in 0..g.wp {
             let t = y * g.wp + x;
+            if !valid[t] {
+                continue;
+            }
             let (i, j, px, py) = owner_and_source(g, x, y);
             let ph = phi(g, px, py);
             if ph == 0.0 {
@@ -306,9 +366,12 @@ fn fit_factors(g: &Geometry, hpad: &[f64], op0: &Operator, s0: f64) -> Vec<i64> 
 }
 
 /// Global least-squares boundary factor (φ ≡ 1), clamped to the fitted range.
-fn fit_s0(g: &Geometry, hpad: &[f64], op0: &Operator) -> f64 {
+fn fit_s0(g: &Geometry, hpad: &[f64], valid: &[bool], op0: &Operator) -> f64 {
     let (mut num, mut den) = (0.0, 0.0);
     for t in 0..hpad.len() {
+        if !valid[t] {
+            continue;
+        }
         let src = op0.src[t] as usize;
         let d = hpad[src] - op0.bilinear_d(src, g);
         num += (hpad[t] - op0.start[t]) * d;
@@ -466,18 +529,20 @@ fn errors(r: &Raster, dec: &[f64]) -> (f64, f64) {
 /// Build the model for spacing `k` and height step `step`, and what it decodes to.
 fn build(
     header: &Header,
-    hpad: &[f64],
+    (hpad, valid): (&[f64], &[bool]),
     g: Geometry,
     step: f64,
     fixed_s: Option<f64>,
 ) -> (Model, Vec<f64>) {
     let offset = header.range.map_or(0.0, |(lo, _)| lo);
     let vw = g.m + 1;
-    let codes: Vec<i64> = (0..g.vertices())
-        .map(|v| {
-            let (i, j) = (v % vw, v / vw);
-            ((hpad[j * g.k * g.wp + i * g.k] - offset) / step).round() as i64
-        })
+    let mut z: Vec<f64> = (0..g.vertices())
+        .map(|v| hpad[(v / vw) * g.k * g.wp + (v % vw) * g.k])
+        .collect();
+    fit_free_vertices(&g, hpad, valid, &mut z);
+    let codes: Vec<i64> = z
+        .iter()
+        .map(|&h| ((h - offset) / step).round() as i64)
         .collect();
     let mut model = Model {
         g,
@@ -492,8 +557,8 @@ fn build(
     if fixed_s.is_none() {
         let z = model.heights();
         let op0 = operator(&g, &z, 0.0, None);
-        model.s0 = fit_s0(&g, hpad, &op0);
-        model.s_codes = fit_factors(&g, hpad, &op0, model.s0);
+        model.s0 = fit_s0(&g, hpad, valid, &op0);
+        model.s_codes = fit_factors(&g, hpad, valid, &op0, model.s0);
     }
     let c = model
         .s_codes
@@ -552,21 +617,12 @@ pub fn encode(r: &Raster, p: &FisParams) -> Result<(Vec<u8>, FisStats)> {
             )));
         }
     }
-    let header = Header {
-        width: r.width as u32,
-        height: r.height as u32,
-        sample_type: r.sample_type,
-        primary: 0,
-        mapping: r.mapping,
-        nodata: r.nodata,
-        range: r.valid_range(),
-        georef: None,
-    };
+    let header = Header::of(r)?;
     let range = header.range.map_or(0.0, |(lo, hi)| hi - lo);
     let one_with = |k: usize, step: f64, fixed: Option<f64>| -> Result<(Model, Vec<f64>)> {
         let g = Geometry::new(r.width, r.height, k)?;
-        let hpad = padded(r, &g);
-        Ok(build(&header, &hpad, g, step, fixed))
+        let (hpad, valid) = padded(r, &g);
+        Ok(build(&header, (&hpad, &valid), g, step, fixed))
     };
     let one = |k: usize, step: f64| one_with(k, step, p.fixed_s);
     let finish = |model: Model, dec: Vec<f64>| -> (Vec<u8>, FisStats) {
@@ -692,16 +748,7 @@ mod tests {
     }
 
     fn header_of(r: &Raster) -> Header {
-        Header {
-            width: r.width as u32,
-            height: r.height as u32,
-            sample_type: r.sample_type,
-            primary: 0,
-            mapping: r.mapping,
-            nodata: r.nodata,
-            range: r.valid_range(),
-            georef: None,
-        }
+        Header::of(r).expect("small raster")
     }
 
     /// Φ applied at padded sample (x, y) through rectangle (i, j), with per-rectangle

@@ -76,7 +76,7 @@ fn f64_from_key(k: i64) -> f64 {
 
 /// LOCO-I / JPEG-LS median edge detector from left `a`, up `b`, up-left `c`.
 #[inline]
-fn med(a: i64, b: i64, c: i64) -> i64 {
+pub(crate) fn med(a: i64, b: i64, c: i64) -> i64 {
     let (lo, hi) = if a < b { (a, b) } else { (b, a) };
     if c >= hi {
         lo

@@ -245,25 +245,6 @@ impl Scale {
     }
 }
 
-/// Build the file header describing `r`.
-fn header_for(r: &Raster) -> Result<Header> {
-    let w = u32::try_from(r.width).map_err(|_| Error::limit("raster wider than 2^32"))?;
-    let h = u32::try_from(r.height).map_err(|_| Error::limit("raster taller than 2^32"))?;
-    if w > i32::MAX as u32 || h > i32::MAX as u32 {
-        return Err(Error::limit("raster dimension over 2^31 - 1"));
-    }
-    Ok(Header {
-        width: w,
-        height: h,
-        sample_type: r.sample_type,
-        primary: 0,
-        mapping: r.mapping,
-        nodata: r.nodata,
-        range: r.valid_range(),
-        georef: r.georef.clone(),
-    })
-}
-
 /// What [`encode_report`] produced besides the bytes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EncodeReport {
@@ -322,68 +303,71 @@ fn encode_to_size(
         let mut l = opts.clone();
         l.target_bytes = None;
         l.method = Method::Grid;
+        l.also.clear();
+        (l.fis_k, l.fis_s, l.haar_step) = (None, None, None);
         encode_once(raster, &l, &mut |_| {})?
     };
     if lossless.0.len() as u64 <= target || range <= 0.0 {
         return Ok(lossless);
     }
+    type Encoded = (Vec<u8>, EncodeReport);
+    /// Geometric bisection on a parameter where larger means smaller files: the smallest
+    /// value in [lo, hi] whose file fits.
+    fn bisect(
+        (mut lo, mut hi): (f64, f64),
+        steps: usize,
+        target: u64,
+        what: &str,
+        try_x: &mut dyn FnMut(f64) -> Result<Encoded>,
+        progress: &mut dyn FnMut(f64),
+    ) -> Result<Encoded> {
+        let mut best = try_x(hi)?;
+        if best.0.len() as u64 > target {
+            return Err(Error::invalid(format!(
+                "cannot fit in {target} bytes: {} bytes at {what}",
+                best.0.len()
+            )));
+        }
+        for k in 0..steps {
+            let mid = (lo * hi).sqrt();
+            let r = try_x(mid)?;
+            if r.0.len() as u64 <= target {
+                hi = mid;
+                best = r;
+            } else {
+                lo = mid;
+            }
+            progress((k + 1) as f64 / steps as f64);
+        }
+        Ok(best)
+    }
     if opts.method == Method::Haar && opts.also.is_empty() {
-        // The wavelet's own rate control: the smallest coefficient step whose file fits.
+        // The wavelet's own rate control: the smallest coefficient step (data units) whose
+        // file fits.
         let mut o = opts.clone();
         o.target_bytes = None;
         let mut try_step = |q: f64| {
             o.haar_step = Some(q);
             encode_once(raster, &o, &mut |_| {})
         };
-        let (mut lo, mut hi) = (1.0f64, 1.0f64);
-        let mut best = try_step(hi)?;
-        while best.0.len() as u64 > target {
-            if hi > 1e12 {
-                return Err(Error::invalid(format!(
-                    "cannot fit in {target} bytes with the haar method"
-                )));
-            }
-            lo = hi;
-            hi *= 4.0;
-            best = try_step(hi)?;
-        }
-        if hi > 1.0 {
-            const STEPS: usize = 16;
-            for k in 0..STEPS {
-                let mid = (lo * hi).sqrt();
-                let r = try_step(mid)?;
-                if r.0.len() as u64 <= target {
-                    hi = mid;
-                    best = r;
-                } else {
-                    lo = mid;
-                }
-                progress((k + 1) as f64 / STEPS as f64);
-            }
-        }
-        return Ok(best);
+        let span = (range * 1e-6, range * 4.0);
+        return bisect(
+            span,
+            24,
+            target,
+            "the coarsest Haar step",
+            &mut try_step,
+            progress,
+        );
     }
-    let (mut lo, mut hi) = (range * 1e-6, range);
-    let mut best = try_bound(hi)?;
-    if best.0.len() as u64 > target {
-        return Err(Error::invalid(format!(
-            "cannot fit in {target} bytes: {} bytes at a max error of the whole range",
-            best.0.len()
-        )));
-    }
-    const STEPS: usize = 14;
-    for k in 0..STEPS {
-        let mid = (lo * hi).sqrt();
-        let r = try_bound(mid)?;
-        if r.0.len() as u64 <= target {
-            hi = mid;
-            best = r;
-        } else {
-            lo = mid;
-        }
-        progress((k + 1) as f64 / STEPS as f64);
-    }
-    Ok(best)
+    bisect(
+        (range * 1e-6, range),
+        14,
+        target,
+        "a max error of the whole range",
+        &mut try_bound,
+        progress,
+    )
 }
 
 /// One encoded representation, before it goes into the container.
@@ -498,7 +482,7 @@ fn encode_once(
     progress: &mut dyn FnMut(f64),
 ) -> Result<(Vec<u8>, EncodeReport)> {
     raster.validate()?;
-    let mut header = header_for(raster)?;
+    let mut header = Header::of(raster)?;
     let e = opts.max_error.map(|b| b.absolute(header.range));
     let sibson_asked = opts.sites.is_some() || opts.rmse.is_some();
     let lossless = e.is_none_or(|e| e == 0.0) && !sibson_asked;

@@ -19,7 +19,7 @@ fn bin() -> Command {
 fn every_method_meets_its_bound_through_the_container() {
     let r = crater();
     for (method, pcts) in [
-        (Method::Fis, &[5.0, 10.0][..]),
+        (Method::Fis, &[10.0, 20.0][..]),
         (Method::Haar, &[0.3, 1.0, 3.0][..]),
         (Method::Sibson, &[3.0][..]),
         (Method::Grid, &[1.0][..]),

@@ -28,6 +28,26 @@ pub struct Header {
 }
 
 impl Header {
+    /// The header describing raster `r` (its size, sample type, mapping, nodata, valid
+    /// range and georef); `primary` is 0.
+    pub fn of(r: &crate::raster::Raster) -> Result<Header> {
+        let w = u32::try_from(r.width).map_err(|_| Error::limit("raster wider than 2^32"))?;
+        let h = u32::try_from(r.height).map_err(|_| Error::limit("raster taller than 2^32"))?;
+        if w > i32::MAX as u32 || h > i32::MAX as u32 {
+            return Err(Error::limit("raster dimension over 2^31 - 1"));
+        }
+        Ok(Header {
+            width: w,
+            height: h,
+            sample_type: r.sample_type,
+            primary: 0,
+            mapping: r.mapping,
+            nodata: r.nodata,
+            range: r.valid_range(),
+            georef: r.georef.clone(),
+        })
+    }
+
     pub fn samples(&self) -> u64 {
         self.width as u64 * self.height as u64
     }
