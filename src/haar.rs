@@ -1406,6 +1406,42 @@ mod tests {
         }
     }
 
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+
+        /// Any size, bound, sample type and nodata pattern: the decoded raster meets the
+        /// bound the encoder reports, and the reported error is the measured one.
+        #[test]
+        fn round_trip_meets_the_bound(
+            w in 1usize..60, h in 1usize..60, seed in any::<u64>(),
+            pct in 0.05f64..30.0, int in any::<bool>(), holes in any::<bool>(),
+        ) {
+            let mut data = fractal(w, h, seed, 200.0);
+            if int {
+                data.iter_mut().for_each(|v| *v = v.round());
+            }
+            let st = if int { SampleType::I16 } else { SampleType::F32 };
+            if !int {
+                data.iter_mut().for_each(|v| *v = *v as f32 as f64);
+            }
+            let mut nodata = None;
+            if holes {
+                nodata = Some(-9999.0);
+                let mut rng = Rng(seed ^ 0x5555);
+                for v in data.iter_mut() {
+                    if rng.unit() < 0.1 {
+                        *v = -9999.0;
+                    }
+                }
+            }
+            let r = Raster::from_values(w, h, data, nodata, st).unwrap();
+            let Some((lo, hi)) = r.valid_range() else { return Ok(()); };
+            let bound = ((hi - lo) * pct / 100.0).max(1e-3);
+            let (payload, err) = encode(&r, &HaarParams { max_error: bound }).unwrap();
+            check_round_trip(&r, &payload, err, bound);
+        }
+    }
+
     #[test]
     fn bands_tile_the_raster() {
         for (w, h) in [
