@@ -1,8 +1,8 @@
 //! Encode and decode speed of vtz's methods on corpus rasters (criterion).
 //!
 //! `cargo bench --bench codec` — samples/s are reported as throughput (elements = samples).
-//! Methods: sibson, grid, fis and haar (each at 1 %; sibson also at 10 %, grid and haar also
-//! lossless). A method whose encode fails on a raster is skipped with a note on stderr.
+//! Methods: sibson, grid and haar at 1 % (sibson also at 10 %, grid and haar also lossless),
+//! fis at 10 % (the tightest bound it meets on these rasters). A method whose encode fails on a raster is skipped with a note on stderr.
 //! Uses `corpus/scape_crater.png` (154 224 samples) and, when `../shared/corpus` is present,
 //! the 1201² White Mountains SRTM tile.
 
@@ -51,10 +51,11 @@ fn bench(c: &mut Criterion) {
                 Some(ErrorBound::PercentOfRange(1.0)),
             ),
             ("grid_lossless", Method::Grid, None),
+            // FIS meets no bound below ~6–10 % on these rasters (it says so): bench it at 10 %.
             (
-                "fis_1pct",
+                "fis_10pct",
                 Method::Fis,
-                Some(ErrorBound::PercentOfRange(1.0)),
+                Some(ErrorBound::PercentOfRange(10.0)),
             ),
             (
                 "haar_1pct",

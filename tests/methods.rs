@@ -180,3 +180,37 @@ fn fis_that_cannot_meet_a_bound_says_so() {
     let (_, rep) = vtz::encode_report(&r, &best).unwrap();
     assert_ne!(rep.method, Method::Fis);
 }
+
+#[test]
+fn fis_reproduces_the_papers_fixed_s_setting_without_a_bound() {
+    let r = crater();
+    let opts = EncodeOptions {
+        method: Method::Fis,
+        fis_k: Some(16),
+        fis_s: Some(0.02),
+        ..Default::default()
+    };
+    let (bytes, rep) = vtz::encode_report(&r, &opts).unwrap();
+    assert_eq!(rep.method, Method::Fis);
+    let back = vtz::decode(&bytes).unwrap();
+    let c = vtz::metrics::compare(&r, &back).unwrap();
+    // The bound reported is the error measured on the decoded surface.
+    assert_eq!(c.max_error, rep.max_error);
+    // Interpolation points are exact (integer source: the code lattice).
+    for y in (0..r.height).step_by(16) {
+        for x in (0..r.width).step_by(16) {
+            assert_eq!(back.data[y * r.width + x], r.data[y * r.width + x], "{x},{y}");
+        }
+    }
+    // FIS options without the fis method are a usage error.
+    let bad = EncodeOptions {
+        method: Method::Sibson,
+        fis_k: Some(8),
+        max_error: Some(ErrorBound::PercentOfRange(5.0)),
+        ..Default::default()
+    };
+    assert!(matches!(
+        vtz::encode(&r, &bad),
+        Err(vtz::Error::InvalidArgument { .. })
+    ));
+}
