@@ -25,6 +25,8 @@ pub mod raster;
 pub mod render;
 pub mod sibson;
 pub mod sites;
+#[cfg(test)]
+mod testutil;
 pub mod triangulation;
 
 pub use container::Limits;

@@ -504,24 +504,7 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    /// SplitMix64: a tiny deterministic generator for test data.
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
-        }
-        /// True with probability num / 2^16.
-        fn bernoulli(&mut self, num: u64) -> bool {
-            (self.next() >> 48) < num
-        }
-        fn below(&mut self, n: u64) -> u64 {
-            self.next() % n
-        }
-    }
+    use crate::testutil::Rng;
 
     fn entropy_bits(ones: usize, n: usize) -> f64 {
         let p = ones as f64 / n as f64;
