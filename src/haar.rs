@@ -1227,6 +1227,16 @@ fn read_varint(r: &mut ByteReader, field: &str) -> Result<u64> {
     Err(r.corrupt(format!("{field} overflows")))
 }
 
+/// A Haar payload's pyramid levels and value-lattice step (for `vtz info`); checks only
+/// those two fields.
+pub fn describe(payload: &[u8]) -> Result<(usize, f64)> {
+    let mut r = ByteReader::new(payload, "haar section");
+    r.take(2, "coding and flags")?;
+    let levels = r.u8("levels")? as usize;
+    r.u8("bias")?;
+    Ok((levels, r.finite_f64("lattice step")?))
+}
+
 /// Decode a Haar-section payload (invalid samples get the nodata fill).
 pub fn decode(payload: &[u8], header: &Header, mask: Option<&[bool]>) -> Result<Vec<f64>> {
     let mut r = ByteReader::new(payload, "haar section");

@@ -732,6 +732,21 @@ pub fn section_kind(m: Method) -> SectionKind {
     }
 }
 
+/// The payload of a file's first section of `kind`, with the header (`None` when the file
+/// has no such section).
+pub fn section_payload(
+    bytes: &[u8],
+    kind: SectionKind,
+    limits: Limits,
+) -> Result<Option<(Header, Vec<u8>)>> {
+    let mut rd = container::ContainerReader::new(std::io::Cursor::new(bytes), limits)?;
+    let header = rd.header().clone();
+    match rd.find(kind) {
+        Some(i) => Ok(Some((header, rd.read_section(i)?))),
+        None => Ok(None),
+    }
+}
+
 /// A file's header and section list, for `vtz info`.
 #[derive(Clone, Debug)]
 pub struct FileInfo {

@@ -145,6 +145,17 @@ fn cli_writes_a_method_list_and_decodes_a_section_by_name() {
         .unwrap();
         assert_eq!(back.data, direct.data, "{name}");
     }
+    // `info --stats` reports the FIS and Haar parameters.
+    let o = bin()
+        .args(["info", "--stats", "--json"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(j["fis"]["k"].as_u64().unwrap() >= 2, "{j}");
+    assert!(j["fis"]["iterations"].as_u64().unwrap() >= 1, "{j}");
+    assert!(j["haar"]["levels"].as_u64().unwrap() >= 1, "{j}");
     // A section the file does not have: a one-line usage error.
     let o = bin()
         .args(["decode", "-q", "--section", "sibson"])
@@ -199,7 +210,11 @@ fn fis_reproduces_the_papers_fixed_s_setting_without_a_bound() {
     // Interpolation points are exact (integer source: the code lattice).
     for y in (0..r.height).step_by(16) {
         for x in (0..r.width).step_by(16) {
-            assert_eq!(back.data[y * r.width + x], r.data[y * r.width + x], "{x},{y}");
+            assert_eq!(
+                back.data[y * r.width + x],
+                r.data[y * r.width + x],
+                "{x},{y}"
+            );
         }
     }
     // FIS options without the fis method are a usage error.

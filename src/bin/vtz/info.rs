@@ -11,7 +11,8 @@ pub struct Args {
     /// Print JSON on stdout instead of text.
     #[arg(long)]
     pub json: bool,
-    /// Also decode the sites section's stream: sites, levels, bits per site, L∞ and RMSE.
+    /// Also decode the sections' parameters: sites, levels, bits per site, L∞ and RMSE of a
+    /// sites section; k, points and factors of an FIS section; levels of a Haar section.
     #[arg(long)]
     pub stats: bool,
 }
@@ -52,6 +53,17 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
     } else {
         None
     };
+    // FIS and Haar parameters, when the file has those sections.
+    let fis =
+        match vtz::section_payload(&bytes, vtz::container::SectionKind::Fis, Limits::default())? {
+            Some((hd, p)) if a.stats => Some(vtz::fis::describe(&p, &hd)?),
+            _ => None,
+        };
+    let haar =
+        match vtz::section_payload(&bytes, vtz::container::SectionKind::Haar, Limits::default())? {
+            Some((_, p)) if a.stats => Some(vtz::haar::describe(&p)?),
+            _ => None,
+        };
     let range = h.range.map_or(0.0, |(lo, hi)| hi - lo);
     let pct = |v: f64| if range > 0.0 { 100.0 * v / range } else { 0.0 };
     let stats_json = stats.as_ref().map(|s| {
@@ -66,6 +78,10 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
     if a.json {
         let j = serde_json::json!({
             "stats": stats_json,
+            "fis": fis.map(|(k, points, s0, iterations)| serde_json::json!({
+                "k": k, "points": points, "s0": s0, "iterations": iterations })),
+            "haar": haar.map(|(levels, lattice_step)| serde_json::json!({
+                "levels": levels, "lattice_step": lattice_step })),
             "file": a.input, "bytes": info.file_bytes, "width": h.width, "height": h.height,
             "samples": samples, "sample_type": h.sample_type.name(),
             "value_scale": h.mapping.scale, "value_offset": h.mapping.offset,
@@ -144,6 +160,14 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
             s.rmse,
             pct(s.rmse)
         );
+    }
+    if let Some((k, points, s0, iters)) = fis {
+        println!(
+            "fis           spacing k = {k}: {points} interpolation points, s0 {s0}, {iters} iterations"
+        );
+    }
+    if let Some((levels, step)) = haar {
+        println!("haar          {levels} levels, value lattice step {step}");
     }
     println!("sections      {}", info.sections.len());
     for (i, e) in info.sections.iter().enumerate() {
