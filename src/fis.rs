@@ -259,8 +259,7 @@ fn iterations_for(c: f64, spread: f64, tol: f64) -> u16 {
 
 /// The raster's samples padded to the geometry (last column and row repeated), nodata
 /// filled, and which padded samples are valid samples of the raster.
-fn padded(r: &Raster, g: &Geometry) -> (Vec<f64>, Vec<bool>) {
-    let filled = r.filled();
+fn padded(r: &Raster, filled: &[f64], g: &Geometry) -> (Vec<f64>, Vec<bool>) {
     let mut out = Vec::with_capacity(g.wp * g.hp);
     let mut valid = Vec::with_capacity(g.wp * g.hp);
     for y in 0..g.hp {
@@ -619,9 +618,11 @@ pub fn encode(r: &Raster, p: &FisParams) -> Result<(Vec<u8>, FisStats)> {
     }
     let header = Header::of(r)?;
     let range = header.range.map_or(0.0, |(lo, hi)| hi - lo);
+    // Nodata filled once; every trial pads it to its own geometry.
+    let filled = r.filled();
     let one_with = |k: usize, step: f64, fixed: Option<f64>| -> Result<(Model, Vec<f64>)> {
         let g = Geometry::new(r.width, r.height, k)?;
-        let (hpad, valid) = padded(r, &g);
+        let (hpad, valid) = padded(r, &filled, &g);
         Ok(build(&header, (&hpad, &valid), g, step, fixed))
     };
     let one = |k: usize, step: f64| one_with(k, step, p.fixed_s);

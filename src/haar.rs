@@ -787,7 +787,9 @@ fn prepare(r: &Raster, step: f64, offset: f64, levels: usize) -> Result<Prepared
         }
     }
     if let Some(m) = &r.mask {
-        fill_invalid(&mut codes, m, w, h);
+        crate::raster::fill_invalid(&mut codes, m, w, h, |a, b, i, len| {
+            (a as i128 + (b as i128 - a as i128) * i as i128 / len as i128) as i64
+        });
     }
     let pyr = Pyramid::new(w, h, levels);
     forward(&mut codes, &pyr);
@@ -797,61 +799,6 @@ fn prepare(r: &Raster, step: f64, offset: f64, levels: usize) -> Result<Prepared
         pyr,
         coefs: codes,
     })
-}
-
-/// Give invalid samples smooth codes: linear between the valid neighbours along the row
-/// (the nearest one at the ends), then rows without any valid sample copy the nearest row
-/// that has one. Encoder only; the decoder writes the nodata fill there.
-fn fill_invalid(codes: &mut [i64], mask: &[bool], w: usize, h: usize) {
-    let mut has_valid = vec![false; h];
-    for y in 0..h {
-        let row = &mut codes[y * w..][..w];
-        let m = &mask[y * w..][..w];
-        let mut prev: Option<usize> = None;
-        let mut x = 0;
-        while x < w {
-            if m[x] {
-                prev = Some(x);
-                x += 1;
-                continue;
-            }
-            let start = x;
-            while x < w && !m[x] {
-                x += 1;
-            }
-            match (prev, (x < w).then_some(x)) {
-                (Some(a), Some(b)) => {
-                    let (va, vb) = (row[a] as i128, row[b] as i128);
-                    let len = (b - a) as i128;
-                    for (k, c) in row.iter_mut().enumerate().take(b).skip(start) {
-                        *c = (va + (vb - va) * (k - a) as i128 / len) as i64;
-                    }
-                }
-                (Some(a), None) => {
-                    let va = row[a];
-                    row[start..x].iter_mut().for_each(|c| *c = va);
-                }
-                (None, Some(b)) => {
-                    let vb = row[b];
-                    row[start..b].iter_mut().for_each(|c| *c = vb);
-                }
-                (None, None) => {}
-            }
-        }
-        has_valid[y] = prev.is_some();
-    }
-    let Some(first) = has_valid.iter().position(|&v| v) else {
-        return;
-    };
-    let mut last = first;
-    for (y, &valid) in has_valid.iter().enumerate() {
-        if valid {
-            last = y;
-        } else {
-            let src = if y < first { first } else { last };
-            codes.copy_within(src * w..src * w + w, y * w);
-        }
-    }
 }
 
 /// Scratch buffers of the closed loop.
