@@ -6,22 +6,21 @@
 //! Uses `corpus/scape_crater.png` (154 224 samples) and, when `../shared/corpus` is present,
 //! the 1201² White Mountains SRTM tile.
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+use common::{decode_opts, encode_opts, read_corpus, shared_corpus};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use std::path::Path;
 use std::time::Duration;
-use vtz::{DecodeOptions, EncodeOptions, ErrorBound, Method};
+use vtz::{ErrorBound, Method};
 
 fn rasters() -> Vec<(String, vtz::Raster)> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let mut v = vec![(
-        "scape_crater".to_string(),
-        vtz::raster::read_path(&root.join("corpus/scape_crater.png"), &Default::default()).unwrap(),
-    )];
-    let wm = root.join("../shared/corpus/srtm3_N44W072_white_mountains.f32");
-    if wm.exists() {
+    let mut v = vec![("scape_crater".to_string(), read_corpus("scape_crater.png"))];
+    let wm = shared_corpus().map(|d| d.join("srtm3_N44W072_white_mountains.f32"));
+    if let Some(wm) = wm.filter(|p| p.exists()) {
         v.push((
             "white_mountains_1201".to_string(),
-            vtz::raster::read_path(&wm, &Default::default()).unwrap(),
+            vtz::read_path(&wm, &Default::default()).unwrap(),
         ));
     }
     v
@@ -37,38 +36,34 @@ fn bench(c: &mut Criterion) {
         for (label, method, bound) in [
             (
                 "sibson_1pct",
-                Method::Sibson,
+                Method::SIBSON,
                 Some(ErrorBound::PercentOfRange(1.0)),
             ),
             (
                 "sibson_10pct",
-                Method::Sibson,
+                Method::SIBSON,
                 Some(ErrorBound::PercentOfRange(10.0)),
             ),
             (
                 "grid_1pct",
-                Method::Grid,
+                Method::GRID,
                 Some(ErrorBound::PercentOfRange(1.0)),
             ),
-            ("grid_lossless", Method::Grid, None),
+            ("grid_lossless", Method::GRID, None),
             // FIS meets no bound below ~6–10 % on these rasters (it says so): bench it at 10 %.
             (
                 "fis_10pct",
-                Method::Fis,
+                Method::FIS,
                 Some(ErrorBound::PercentOfRange(10.0)),
             ),
             (
                 "haar_1pct",
-                Method::Haar,
+                Method::HAAR,
                 Some(ErrorBound::PercentOfRange(1.0)),
             ),
-            ("haar_lossless", Method::Haar, None),
+            ("haar_lossless", Method::HAAR, None),
         ] {
-            let opts = EncodeOptions {
-                method,
-                max_error: bound,
-                ..Default::default()
-            };
+            let opts = encode_opts(&[method], bound);
             // A method that cannot meet the request here (or is not implemented) is skipped
             // with a note instead of failing the whole run.
             let bytes = match vtz::encode(&r, &opts) {
@@ -86,10 +81,7 @@ fn bench(c: &mut Criterion) {
                 b.iter(|| vtz::encode(&r, &opts).unwrap())
             });
             for threads in [1, 2] {
-                let d = DecodeOptions {
-                    threads,
-                    ..Default::default()
-                };
+                let d = decode_opts(|o| o.threads = threads);
                 g.bench_function(format!("decode_{label}_t{threads}"), |b| {
                     b.iter(|| vtz::decode_with(&bytes, &d).unwrap())
                 });

@@ -20,26 +20,14 @@ use std::hash::Hash;
 use std::hint::black_box;
 use std::ops::Range;
 use std::time::Instant;
-use vtz::entropy::range::{Bit, Decoder, Encoder, IntModel};
+use vtz::internals::range::{Bit, Decoder, Encoder, IntModel};
+
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+use common::Rng;
 
 // ---------------------------------------------------------------- test data
-
-/// SplitMix64.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
 
 fn binary_stream(p: f64, n: usize, seed: u64) -> Vec<bool> {
     let mut rng = Rng(seed);

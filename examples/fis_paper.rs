@@ -6,9 +6,9 @@
 //! `cargo run --release --example fis_paper -- OUTDIR`
 
 use std::path::{Path, PathBuf};
-use vtz::fis::{FisParams, encode};
-use vtz::raster::Raster;
-use vtz::render::{ShadeOptions, hillshade_image};
+use vtz::Raster;
+use vtz::internals::fis::{FisParams, encode};
+use vtz::viz::hillshade::{ShadeOptions, hillshade_image};
 
 /// A `size`×`size` crop at (x0, y0).
 fn crop(r: &Raster, x0: usize, y0: usize, size: usize) -> Raster {
@@ -54,7 +54,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     for (label, file, (x0, y0)) in sources {
-        let full = vtz::raster::read_path(&root.join(file), &Default::default())?;
+        let full = vtz::read_path(&root.join(file), &Default::default())?;
         let r = crop(&full, x0, y0, 257);
         let (lo, hi) = r.valid_range().unwrap_or((0.0, 1.0));
         let range = (hi - lo).max(f64::MIN_POSITIVE);
@@ -73,8 +73,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         fixed_s: fixed,
                     },
                 )?;
-                let header = vtz::container::Header::of(&r)?;
-                let data = vtz::fis::decode(&payload, &header, r.mask.as_deref())?;
+                let header = vtz::internals::container::Header::of(&r)?;
+                let data = vtz::internals::fis::decode(&payload, &header, r.mask.as_deref())?;
                 let mut back = r.clone();
                 back.data = data;
                 let c = vtz::metrics::compare(&r, &back)?;
@@ -83,15 +83,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     tiles.push(hillshade_image(&back, &shade)?);
                 }
                 // The same surface as a whole .vtz file, for the size comparison below.
-                let file = vtz::encode(
-                    &r,
-                    &vtz::EncodeOptions {
-                        method: vtz::Method::Fis,
-                        fis_k: Some(k),
-                        fis_s: fixed,
-                        ..Default::default()
-                    },
-                )?;
+                let mut opts = vtz::EncodeOptions::default();
+                opts.methods = vec![vtz::Method::FIS];
+                opts.params.fis.k = Some(k);
+                opts.params.fis.s = fixed;
+                let file = vtz::encode(&r, &opts)?;
                 fitted_file = file.len();
                 println!(
                     "| {label} | {k} | {} ({:.2} %) | {} | {} | {:.4} | {:.3} | {:.3} | {:.2} | {:.2} | {:.3} | {:.3} |",
@@ -109,19 +105,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 );
             }
             // Sibson sites in a file of the same size as the fitted FIS, for scale.
-            let (file, rep) = vtz::encode_report(
-                &r,
-                &vtz::EncodeOptions {
-                    method: vtz::Method::Sibson,
-                    target_bytes: Some(fitted_file as u64),
-                    ..Default::default()
-                },
-            )?;
+            let (file, rep) = vtz::Encoder::new()
+                .method(vtz::Method::SIBSON)
+                .target_bytes(fitted_file as u64)
+                .encode_report(&r)?;
             let back = vtz::decode(&file)?;
             let c = vtz::metrics::compare(&r, &back)?;
             println!(
                 "| {label} | {k} | {} sites | sibson, same size | {} | {:.4} | {:.3} | {:.3} | {:.2} | {:.2} | | |",
-                rep.sites.map_or(0, |s| s.sites),
+                rep.stats
+                    .as_ref()
+                    .and_then(|s| s.count("sites"))
+                    .unwrap_or(0),
                 file.len(),
                 8.0 * file.len() as f64 / (257.0 * 257.0),
                 c.rmse,
@@ -142,7 +137,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 image::imageops::replace(&mut img, t, x as i64, y as i64);
             }
         }
-        let png = vtz::render::encode_png(&img, &[])?;
+        let png = vtz::viz::hillshade::encode_png(&img, &[])?;
         std::fs::write(out.join(format!("fis_{label}.png")), png)?;
     }
     Ok(())

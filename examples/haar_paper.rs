@@ -7,8 +7,8 @@
 //! `cargo run --release --example haar_paper -- OUTDIR`
 
 use std::path::{Path, PathBuf};
-use vtz::render::{ShadeOptions, hillshade_image};
-use vtz::{EncodeOptions, Method};
+use vtz::viz::hillshade::{ShadeOptions, hillshade_image};
+use vtz::{EncodeOptions, Method, Norm};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out = PathBuf::from(
@@ -18,7 +18,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     std::fs::create_dir_all(&out)?;
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let r = vtz::raster::read_path(&root.join("corpus/scape_crater.png"), &Default::default())?;
+    let r = vtz::read_path(&root.join("corpus/scape_crater.png"), &Default::default())?;
     let (lo, hi) = r.valid_range().expect("valid samples");
     let range = hi - lo;
     let source_bytes = r.len() as f64 * r.sample_type.bits() as f64 / 8.0;
@@ -33,16 +33,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let target = (source_bytes / ratio).floor() as u64;
         let mut tiles = vec![orig.clone()];
         for (label, method, norm) in [
-            ("vtz haar", Method::Haar, vtz::sites::Norm::Linf),
-            ("vtz sibson (linf)", Method::Sibson, vtz::sites::Norm::Linf),
-            ("vtz sibson (l2)", Method::Sibson, vtz::sites::Norm::L2),
+            ("vtz haar", Method::HAAR, Norm::Linf),
+            ("vtz sibson (linf)", Method::SIBSON, Norm::Linf),
+            ("vtz sibson (l2)", Method::SIBSON, Norm::L2),
         ] {
-            let opts = EncodeOptions {
-                method,
-                norm,
-                target_bytes: Some(target),
-                ..Default::default()
-            };
+            let mut opts = EncodeOptions::default();
+            opts.methods = vec![method];
+            opts.params.sibson.norm = norm;
+            opts.target_bytes = Some(target);
             let bytes = vtz::encode(&r, &opts)?;
             let back = vtz::decode(&bytes)?;
             let c = vtz::metrics::compare(&r, &back)?;
@@ -55,7 +53,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 c.max_error,
                 100.0 * c.max_error / range
             );
-            if norm == vtz::sites::Norm::Linf {
+            if norm == Norm::Linf {
                 tiles.push(hillshade_image(&back, &shade)?);
             }
         }
@@ -77,7 +75,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     std::fs::write(
         out.join("haar_crater.png"),
-        vtz::render::encode_png(&img, &[])?,
+        vtz::viz::hillshade::encode_png(&img, &[])?,
     )?;
     Ok(())
 }

@@ -5,9 +5,11 @@ use std::fmt;
 /// Every fallible vtz operation returns this error. The variant says *why* it failed so
 /// callers (and the CLI's exit code) can react: bad bytes, an unsupported variant, a bad
 /// argument, a limit hit, or the operating system.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum Error {
     /// Reading or writing a file failed at the operating-system level.
+    #[error("I/O error: {context}: {source}")]
     Io {
         /// What was being done, e.g. the path.
         context: String,
@@ -15,14 +17,18 @@ pub enum Error {
     },
     /// The input bytes are not valid: truncated, corrupted, checksum mismatch, out-of-range
     /// metadata. `what` names the place (file, section, field).
+    #[error("corrupt input: {what}")]
     Corrupt { what: String },
     /// The input is well-formed but uses a variant vtz does not implement (a 3-band TIFF,
     /// an unknown required section, a newer format version).
+    #[error("unsupported: {what}")]
     Unsupported { what: String },
     /// The caller asked for something impossible or inconsistent (a negative error bound,
     /// a window outside the raster, an unknown format name).
+    #[error("invalid argument: {what}")]
     InvalidArgument { what: String },
     /// The input would need more memory or work than the configured limits allow.
+    #[error("limit exceeded: {what}")]
     LimitExceeded { what: String },
 }
 
@@ -67,27 +73,6 @@ impl Error {
             Error::LimitExceeded { what } => Error::LimitExceeded {
                 what: format!("{ctx}: {what}"),
             },
-        }
-    }
-}
-
-impl fmt::Display for Error {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Error::Io { context, source } => write!(f, "I/O error: {context}: {source}"),
-            Error::Corrupt { what } => write!(f, "corrupt input: {what}"),
-            Error::Unsupported { what } => write!(f, "unsupported: {what}"),
-            Error::InvalidArgument { what } => write!(f, "invalid argument: {what}"),
-            Error::LimitExceeded { what } => write!(f, "limit exceeded: {what}"),
-        }
-    }
-}
-
-impl std::error::Error for Error {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            Error::Io { source, .. } => Some(source),
-            _ => None,
         }
     }
 }

@@ -1,7 +1,8 @@
 //! Error and size metrics between two rasters: RMSE, max error, % of range, PSNR, bits/sample.
 
 use crate::error::{Error, Result};
-use crate::raster::Raster;
+use crate::model::Raster;
+use crate::quant::Errors;
 use serde::Serialize;
 
 /// How far a reconstruction is from a reference, over the reference's valid samples.
@@ -36,17 +37,14 @@ pub fn compare(a: &Raster, b: &Raster) -> Result<Comparison> {
             a.width, a.height, b.width, b.height
         )));
     }
-    let (mut max, mut sum2, mut sum1) = (0f64, 0f64, 0f64);
+    let mut errs = Errors::default();
     let (mut valid, mut lost, mut invented) = (0usize, 0usize, 0usize);
     let mut identical = true;
     for i in 0..a.len() {
         match (a.is_valid(i), b.is_valid(i)) {
             (true, true) => {
-                let d = (a.data[i] - b.data[i]).abs();
                 identical &= a.data[i].to_bits() == b.data[i].to_bits();
-                max = max.max(d);
-                sum2 += d * d;
-                sum1 += d;
+                errs.add(a.data[i], b.data[i]);
                 valid += 1;
             }
             (true, false) => {
@@ -57,8 +55,7 @@ pub fn compare(a: &Raster, b: &Raster) -> Result<Comparison> {
             (false, false) => {}
         }
     }
-    let compared = (valid - lost).max(1) as f64;
-    let rmse = (sum2 / compared).sqrt();
+    let (max, rmse) = (errs.max, errs.rmse());
     let range = a.valid_range().map_or(0.0, |(lo, hi)| hi - lo);
     let pct = |v: f64| if range > 0.0 { 100.0 * v / range } else { 0.0 };
     Ok(Comparison {
@@ -69,7 +66,7 @@ pub fn compare(a: &Raster, b: &Raster) -> Result<Comparison> {
         invented,
         max_error: max,
         rmse,
-        mean_abs_error: sum1 / compared,
+        mean_abs_error: errs.mean_abs(),
         range,
         max_error_pct: pct(max),
         rmse_pct: pct(rmse),

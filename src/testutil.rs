@@ -1,24 +1,64 @@
-//! Test helpers shared by the unit tests (compiled only for tests).
+//! Test helpers shared by the unit tests (compiled only for tests): one random generator and
+//! the format modules' corpus and comparison helpers.
 
-/// SplitMix64: a tiny deterministic generator for test data.
-pub struct Rng(pub u64);
-impl Rng {
-    pub fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+use crate::formats::{ReadOptions, raw};
+use crate::model::Raster;
+use std::path::{Path, PathBuf};
+
+// The one test generator, shared with the integration tests and the benches.
+#[path = "../tests/common/rng.rs"]
+mod rng;
+pub use rng::Rng;
+
+/// The shared corpus directory, or `None` (with a message) when it is absent.
+pub fn corpus() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus");
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        eprintln!("corpus not found at {}: skipping", dir.display());
+        None
     }
-    /// True with probability num / 2^16.
-    pub fn bernoulli(&mut self, num: u64) -> bool {
-        (self.next() >> 48) < num
-    }
-    pub fn below(&mut self, n: u64) -> u64 {
-        self.next() % n
-    }
-    /// Uniform in [0, 1).
-    pub fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
+}
+
+/// Load corpus dataset `name` from its `.f32` + `.json`.
+pub fn load_raw(dir: &Path, name: &str) -> Raster {
+    let f = std::fs::read(dir.join(format!("{name}.f32"))).unwrap();
+    let j = std::fs::read(dir.join(format!("{name}.json"))).unwrap();
+    raw::read(&f, &j, &ReadOptions::default()).unwrap()
+}
+
+/// The raw `.f32` values of corpus dataset `name`, as bits.
+pub fn raw_bits(dir: &Path, name: &str) -> Vec<u32> {
+    let f = std::fs::read(dir.join(format!("{name}.f32"))).unwrap();
+    f.chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
+}
+
+/// The raster's samples as f32 bits (invalid samples as the f32 of their fill value).
+pub fn raster_bits(r: &Raster) -> Vec<u32> {
+    r.data.iter().map(|&v| (v as f32).to_bits()).collect()
+}
+
+/// Bit-exact equality of two rasters' values, masks, nodata, types and georefs.
+pub fn assert_same(a: &Raster, b: &Raster) {
+    assert_eq!((a.width, a.height), (b.width, b.height));
+    assert_eq!(a.mask, b.mask, "masks differ");
+    assert_eq!(
+        a.nodata.map(f64::to_bits),
+        b.nodata.map(f64::to_bits),
+        "nodata differs"
+    );
+    assert_eq!(a.sample_type, b.sample_type);
+    assert_eq!(a.georef, b.georef);
+    for i in 0..a.len() {
+        if a.is_valid(i) {
+            assert_eq!(
+                a.data[i].to_bits(),
+                b.data[i].to_bits(),
+                "sample {i} differs"
+            );
+        }
     }
 }

@@ -1,53 +1,27 @@
 //! The `vtz` binary: exit codes, one-line errors, atomic and non-clobbering output.
 
+mod common;
+
+use common::{corpus, json, stderr, tmp, vtz};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn vtz(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vtz"))
-        .args(args)
-        .output()
-        .expect("run vtz")
-}
-
-fn corpus(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("corpus")
-        .join(name)
-        .to_string_lossy()
-        .into_owned()
-}
-
-fn tmp(dir: &tempfile::TempDir, name: &str) -> String {
-    dir.path().join(name).to_string_lossy().into_owned()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn json(o: &Output) -> serde_json::Value {
-    assert!(o.status.success(), "{}", stderr(o));
-    serde_json::from_slice(&o.stdout).expect("json on stdout")
-}
 
 #[test]
 fn lossless_encode_decode_compare() {
     let d = tempfile::tempdir().unwrap();
     let out = tmp(&d, "crater.vtz");
-    let o = vtz(&["encode", &corpus("scape_crater.png"), "-o", &out, "--quiet"]);
+    let o = vtz(["encode", &corpus("scape_crater.png"), "-o", &out, "--quiet"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let back = tmp(&d, "crater.tif");
-    let o = vtz(&["decode", &out, "-o", &back, "-q"]);
+    let o = vtz(["decode", &out, "-o", &back, "-q"]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let c = json(&vtz(&[
+    let c = json(&vtz([
         "compare",
         &corpus("scape_crater.png"),
         &back,
         "--json",
     ]));
     assert_eq!(c["identical"], true);
-    let c = json(&vtz(&[
+    let c = json(&vtz([
         "compare",
         &corpus("scape_crater.png"),
         &out,
@@ -62,7 +36,7 @@ fn bounded_encode_meets_percent_bound_and_info_lists_sections() {
     let d = tempfile::tempdir().unwrap();
     let out = tmp(&d, "kauai.vtz");
     let src = corpus("srtm3_N22W160_kauai.hgt");
-    let e = json(&vtz(&[
+    let e = json(&vtz([
         "encode",
         &src,
         "-o",
@@ -74,11 +48,11 @@ fn bounded_encode_meets_percent_bound_and_info_lists_sections() {
         "--json",
     ]));
     assert!(e["max_error_pct"].as_f64().unwrap() <= 1.0);
-    let c = json(&vtz(&["compare", &src, &out, "--json"]));
+    let c = json(&vtz(["compare", &src, &out, "--json"]));
     assert!(c["max_error_pct"].as_f64().unwrap() <= 1.0, "{c}");
     assert_eq!(c["lost"], 0);
     assert_eq!(c["invented"], 0);
-    let i = json(&vtz(&["info", &out, "--json"]));
+    let i = json(&vtz(["info", &out, "--json"]));
     assert_eq!(i["width"], 1201);
     assert_eq!(i["sample_type"], "i16");
     assert_eq!(i["nodata"], -32768.0);
@@ -90,7 +64,7 @@ fn bounded_encode_meets_percent_bound_and_info_lists_sections() {
         .map(|s| s["type"].as_str().unwrap().to_string())
         .collect();
     assert_eq!(kinds, ["mask", "grid"]);
-    let o = vtz(&["info", &out]);
+    let o = vtz(["info", &out]);
     assert!(o.status.success());
     assert!(String::from_utf8_lossy(&o.stdout).contains("primary"));
 }
@@ -100,11 +74,11 @@ fn existing_output_is_not_overwritten_without_force() {
     let d = tempfile::tempdir().unwrap();
     let out = tmp(&d, "x.vtz");
     std::fs::write(&out, b"keep me").unwrap();
-    let o = vtz(&["encode", &corpus("scape_crater.png"), "-o", &out]);
+    let o = vtz(["encode", &corpus("scape_crater.png"), "-o", &out]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("--force"));
     assert_eq!(std::fs::read(&out).unwrap(), b"keep me");
-    let o = vtz(&[
+    let o = vtz([
         "encode",
         &corpus("scape_crater.png"),
         "-o",
@@ -121,7 +95,7 @@ fn corrupt_input_gives_one_line_error_and_no_output() {
     let d = tempfile::tempdir().unwrap();
     let good = tmp(&d, "good.vtz");
     assert!(
-        vtz(&[
+        vtz([
             "encode",
             &corpus("nasadem_west_bijou_escarpment_landlab.asc"),
             "-o",
@@ -135,7 +109,7 @@ fn corrupt_input_gives_one_line_error_and_no_output() {
     let bad = tmp(&d, "bad.vtz");
     std::fs::write(&bad, &bytes[..bytes.len() - 3]).unwrap();
     let out = tmp(&d, "out.asc");
-    let o = vtz(&["decode", &bad, "-o", &out]);
+    let o = vtz(["decode", &bad, "-o", &out]);
     assert_eq!(o.status.code(), Some(1));
     let err = stderr(&o);
     assert_eq!(err.trim_end().lines().count(), 1, "{err}");
@@ -153,8 +127,8 @@ fn corrupt_input_gives_one_line_error_and_no_output() {
 fn usage_errors_exit_2() {
     let d = tempfile::tempdir().unwrap();
     let out = tmp(&d, "x.vtz");
-    assert_eq!(vtz(&["encode"]).status.code(), Some(2));
-    let o = vtz(&[
+    assert_eq!(vtz(["encode"]).status.code(), Some(2));
+    let o = vtz([
         "encode",
         &corpus("scape_crater.png"),
         "-o",
@@ -163,7 +137,7 @@ fn usage_errors_exit_2() {
         "-3",
     ]);
     assert_eq!(o.status.code(), Some(2));
-    let o = vtz(&[
+    let o = vtz([
         "encode",
         &corpus("scape_crater.png"),
         "-o",
@@ -175,7 +149,7 @@ fn usage_errors_exit_2() {
     // Output onto the input is refused.
     let src = tmp(&d, "a.asc");
     std::fs::copy(corpus("nasadem_west_bijou_escarpment_landlab.asc"), &src).unwrap();
-    let o = vtz(&["convert", &src, &src, "--force"]);
+    let o = vtz(["convert", &src, &src, "--force"]);
     assert_eq!(o.status.code(), Some(2));
     assert_eq!(
         std::fs::read(&src).unwrap(),
@@ -186,7 +160,7 @@ fn usage_errors_exit_2() {
 #[test]
 fn missing_input_is_a_runtime_error() {
     let d = tempfile::tempdir().unwrap();
-    let o = vtz(&["encode", &tmp(&d, "nope.tif"), "-o", &tmp(&d, "x.vtz")]);
+    let o = vtz(["encode", &tmp(&d, "nope.tif"), "-o", &tmp(&d, "x.vtz")]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).starts_with("vtz: I/O error"), "{}", stderr(&o));
 }
@@ -197,10 +171,10 @@ fn georef_and_nodata_survive_geotiff_vtz_geotiff() {
     let src = corpus("srtm30m_bigtujunga_utm11.tif");
     let v = tmp(&d, "t.vtz");
     let back = tmp(&d, "t.tif");
-    assert!(vtz(&["encode", &src, "-o", &v, "-q"]).status.success());
-    assert!(vtz(&["decode", &v, "-o", &back, "-q"]).status.success());
-    let a = vtz::raster::read_path(Path::new(&src), &Default::default()).unwrap();
-    let b = vtz::raster::read_path(Path::new(&back), &Default::default()).unwrap();
+    assert!(vtz(["encode", &src, "-o", &v, "-q"]).status.success());
+    assert!(vtz(["decode", &v, "-o", &back, "-q"]).status.success());
+    let a = vtz::read_path(Path::new(&src), &Default::default()).unwrap();
+    let b = vtz::read_path(Path::new(&back), &Default::default()).unwrap();
     assert_eq!(a, b);
     assert!(a.georef.as_ref().unwrap().geokeys.is_some());
     assert_eq!(a.nodata, Some(32767.0));

@@ -1,40 +1,18 @@
 //! Container and grid-section tests: round trips, bounds, truncation, corruption, garbage.
 
+mod common;
+
+use common::{Kind, Rng, assert_same, decode_opts, encode_opts};
 use proptest::prelude::*;
-use vtz::container::{self, Header, SF_REQUIRED, Section, SectionKind};
-use vtz::raster::{GeoKeys, ValueMapping};
+use vtz::internals::container::{self, Header, SF_REQUIRED, Section, SectionKind};
 use vtz::{
-    DecodeOptions, EncodeOptions, Error, ErrorBound, Georef, Limits, Method, Raster, RasterType,
-    SampleType,
+    EncodeOptions, Error, ErrorBound, GeoKeys, Georef, Limits, Method, Raster, RasterType,
+    SampleType, ValueMapping,
 };
 
-/// A deterministic rough terrain with a nodata hole.
+/// A deterministic rough terrain (with nodata holes) and a UTM georef.
 fn terrain(w: usize, h: usize, st: SampleType, holes: bool) -> Raster {
-    let mut data = Vec::with_capacity(w * h);
-    let mut s: u64 = 12345;
-    for y in 0..h {
-        for x in 0..w {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            let noise = ((s >> 33) % 7) as f64 - 3.0;
-            let v = 500.0 + 80.0 * ((x as f64) * 0.07).sin() * ((y as f64) * 0.05).cos() + noise;
-            data.push(match st {
-                SampleType::F32 => (v + 0.37) as f32 as f64,
-                SampleType::F64 => v + 0.123456789,
-                _ => v.round(),
-            });
-        }
-    }
-    let nodata = if holes { Some(-9999.0) } else { None };
-    if holes {
-        for y in h / 3..h / 2 {
-            for x in w / 4..w / 2 {
-                data[y * w + x] = -9999.0;
-            }
-        }
-    }
-    let mut r = Raster::from_values(w, h, data, nodata, st).unwrap();
+    let mut r = common::terrain(Kind::Fbm, w, h, 12345, holes, st);
     r.georef = Some(Georef {
         origin: [600000.0, 5200000.0],
         pixel_size: [30.0, 30.0],
@@ -51,17 +29,24 @@ fn terrain(w: usize, h: usize, st: SampleType, holes: bool) -> Raster {
 }
 
 fn assert_bits_equal(a: &Raster, b: &Raster) {
-    assert_eq!((a.width, a.height), (b.width, b.height));
-    assert_eq!(a.mask, b.mask);
-    assert_eq!(a.nodata.map(f64::to_bits), b.nodata.map(f64::to_bits));
-    assert_eq!(a.sample_type, b.sample_type);
-    assert_eq!(a.georef, b.georef);
+    assert_same(a, b, "round trip");
     assert_eq!(a.mapping, b.mapping);
-    for i in 0..a.len() {
-        if a.is_valid(i) {
-            assert_eq!(a.data[i].to_bits(), b.data[i].to_bits(), "sample {i}");
-        }
-    }
+}
+
+/// Whether a section of this type may be the primary one (any but the mask and metadata).
+fn can_be_primary(k: SectionKind) -> bool {
+    k != SectionKind::MASK && k != SectionKind::METADATA
+}
+
+/// Whether this version knows the type: mask, grid, sites, fis, haar, residual, metadata.
+fn is_known(k: SectionKind) -> bool {
+    (1..=7).contains(&k.code())
+}
+
+/// The bytes every `.vtz` file starts with.
+fn magic() -> Vec<u8> {
+    let r = Raster::from_values(1, 1, vec![0.0], None, SampleType::I16).unwrap();
+    vtz::encode(&r, &EncodeOptions::default()).unwrap()[..8].to_vec()
 }
 
 #[test]
@@ -87,11 +72,7 @@ fn lossy_bound_holds_and_integers_stay_integers() {
     for st in [SampleType::I16, SampleType::F32, SampleType::F64] {
         for e in [0.25, 0.5, 1.0, 3.7, 50.0] {
             let r = terrain(53, 47, st, true);
-            let opts = EncodeOptions {
-                max_error: Some(ErrorBound::Abs(e)),
-                method: Method::Grid,
-                ..Default::default()
-            };
+            let opts = encode_opts(&[Method::GRID], Some(ErrorBound::Abs(e)));
             let (bytes, rep) = vtz::encode_report(&r, &opts).unwrap();
             let back = vtz::decode(&bytes).unwrap();
             let c = vtz::metrics::compare(&r, &back).unwrap();
@@ -121,11 +102,7 @@ fn lossy_bound_holds_and_integers_stay_integers() {
 fn percent_bound_is_of_the_value_range() {
     let r = terrain(40, 40, SampleType::F32, false);
     let (lo, hi) = r.valid_range().unwrap();
-    let opts = EncodeOptions {
-        max_error: Some(ErrorBound::parse("1%").unwrap()),
-        method: Method::Grid,
-        ..Default::default()
-    };
+    let opts = encode_opts(&[Method::GRID], Some(ErrorBound::parse("1%").unwrap()));
     let back = vtz::decode(&vtz::encode(&r, &opts).unwrap()).unwrap();
     let c = vtz::metrics::compare(&r, &back).unwrap();
     assert!(c.max_error <= (hi - lo) * 0.01);
@@ -169,14 +146,9 @@ fn all_nodata_and_tiny_rasters() {
 #[test]
 fn every_proper_prefix_is_an_error() {
     let r = terrain(23, 19, SampleType::F32, true);
-    let bytes = vtz::encode(
-        &r,
-        &EncodeOptions {
-            metadata: Some("{\"a\":1}".into()),
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let mut opts = EncodeOptions::default();
+    opts.metadata = Some("{\"a\":1}".into());
+    let bytes = vtz::encode(&r, &opts).unwrap();
     for n in 0..bytes.len() {
         match vtz::decode(&bytes[..n]) {
             Err(Error::Corrupt { .. }) => {}
@@ -232,7 +204,7 @@ fn unknown_sections_are_skipped_unless_required() {
     let bytes = vtz::encode(&r, &EncodeOptions::default()).unwrap();
     let mut c = container::read(&bytes, Limits::default()).unwrap();
     c.sections.push(Section {
-        kind: SectionKind::Unknown(900),
+        kind: SectionKind(900),
         flags: 0,
         payload: vec![1, 2, 3],
     });
@@ -257,7 +229,7 @@ fn absurd_sizes_hit_limits_without_allocating() {
     let bytes = container::write(
         &h,
         &[Section {
-            kind: SectionKind::Grid,
+            kind: SectionKind(2), // grid
             flags: SF_REQUIRED,
             payload: vec![],
         }],
@@ -266,13 +238,12 @@ fn absurd_sizes_hit_limits_without_allocating() {
         vtz::decode(&bytes),
         Err(Error::LimitExceeded { .. })
     ));
-    let small = DecodeOptions {
-        limits: Limits {
+    let small = decode_opts(|o| {
+        o.limits = Limits {
             max_samples: 50,
             ..Default::default()
-        },
-        ..Default::default()
-    };
+        }
+    });
     let r = terrain(10, 10, SampleType::I16, false);
     let bytes = vtz::encode(&r, &EncodeOptions::default()).unwrap();
     assert!(matches!(
@@ -323,10 +294,10 @@ proptest! {
             kind: SectionKind::from_code(code), flags: if req { SF_REQUIRED } else { 0 }, payload,
         }).collect();
         // The primary must name a representation section: point it at one if there is one.
-        hd.primary = sections.iter().position(|s| s.kind.is_representation() || matches!(s.kind, SectionKind::Unknown(_))).unwrap_or(0) as u16;
+        hd.primary = sections.iter().position(|s| can_be_primary(s.kind)).unwrap_or(0) as u16;
         let bytes = container::write(&hd, &sections);
-        let valid_primary = sections.is_empty() || sections.get(hd.primary as usize).is_some_and(|s| s.kind.is_representation() || matches!(s.kind, SectionKind::Unknown(_)));
-        let has_required_unknown = sections.iter().any(|s| matches!(s.kind, SectionKind::Unknown(_)) && s.flags & SF_REQUIRED != 0);
+        let valid_primary = sections.is_empty() || sections.get(hd.primary as usize).is_some_and(|s| can_be_primary(s.kind));
+        let has_required_unknown = sections.iter().any(|s| !is_known(s.kind) && s.flags & SF_REQUIRED != 0);
         match container::read(&bytes, Limits::default()) {
             Ok(c) => {
                 prop_assert!(valid_primary && !has_required_unknown);
@@ -341,7 +312,7 @@ proptest! {
     #[test]
     fn garbage_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..400)) {
         let _ = vtz::decode(&bytes);
-        let mut with_magic = container::MAGIC.to_vec();
+        let mut with_magic = magic();
         with_magic.extend_from_slice(&bytes);
         let _ = vtz::decode(&with_magic);
     }
@@ -356,7 +327,7 @@ proptest! {
         let st = if float { SampleType::F32 } else { SampleType::I16 };
         let data: Vec<f64> = vals[..w * h].iter().map(|&v| if float { v as f32 as f64 } else { v.round() }).collect();
         let r = Raster::from_values(w, h, data, None, st).unwrap();
-        let opts = EncodeOptions { max_error: (e > 0.0).then_some(ErrorBound::Abs(e)), method: Method::Grid, ..Default::default() };
+        let opts = encode_opts(&[Method::GRID], (e > 0.0).then_some(ErrorBound::Abs(e)));
         let bytes = vtz::encode(&r, &opts).unwrap();
         let back = vtz::decode(&bytes).unwrap();
         let again = vtz::decode(&bytes).unwrap();
@@ -374,22 +345,13 @@ proptest! {
 fn float_samples_half_a_step_between_levels_stay_quantized() {
     // Values exactly between two quantization levels, at a magnitude where f32 rounding of
     // the reconstruction matters: the grid must stay lossy and within the bound.
-    let mut s = 1u64;
+    let mut rng = Rng(1);
     let data: Vec<f64> = (0..40_000)
-        .map(|_| {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (1000.0 + (s >> 11) as f64 / (1u64 << 53) as f64 * 100.0) as f32 as f64
-        })
+        .map(|_| (1000.0 + rng.unit() * 100.0) as f32 as f64)
         .collect();
     let r = Raster::from_values(200, 200, data, None, SampleType::F32).unwrap();
     for e in [0.1, 0.01, 0.3] {
-        let opts = EncodeOptions {
-            max_error: Some(ErrorBound::Abs(e)),
-            method: Method::Grid,
-            ..Default::default()
-        };
+        let opts = encode_opts(&[Method::GRID], Some(ErrorBound::Abs(e)));
         let (bytes, rep) = vtz::encode_report(&r, &opts).unwrap();
         assert!(rep.max_error > 0.0, "e={e}: fell back to lossless");
         let back = vtz::decode(&bytes).unwrap();

@@ -5,6 +5,9 @@
 //! format version: `VTZ_BLESS_GOLDEN=1 cargo test --test golden` writes files that are
 //! missing; existing golden files are never rewritten.
 
+mod common;
+
+use common::{decode_opts, encode_opts, read_corpus};
 use std::path::{Path, PathBuf};
 use vtz::{EncodeOptions, ErrorBound, Method, Window};
 
@@ -14,21 +17,19 @@ fn dir() -> PathBuf {
 
 /// The source of every golden file: a 64×48 window of the Kauai SRTM tile with voids.
 fn source() -> vtz::Raster {
-    let tile = Path::new(env!("CARGO_MANIFEST_DIR")).join("corpus/srtm3_N22W160_kauai.hgt");
     let bytes = vtz::encode(
-        &vtz::raster::read_path(&tile, &Default::default()).unwrap(),
+        &read_corpus("srtm3_N22W160_kauai.hgt"),
         &EncodeOptions::default(),
     )
     .unwrap();
-    let opts = vtz::DecodeOptions {
-        window: Some(Window {
+    let opts = decode_opts(|o| {
+        o.window = Some(Window {
             x: 448,
             y: 960,
             width: 64,
             height: 48,
-        }),
-        ..Default::default()
-    };
+        })
+    });
     vtz::decode_with(&bytes, &opts).unwrap()
 }
 
@@ -37,37 +38,22 @@ fn cases() -> Vec<(&'static str, EncodeOptions, f64)> {
     vec![
         (
             "v1_kauai_crop_grid",
-            EncodeOptions {
-                method: Method::Grid,
-                ..Default::default()
-            },
+            encode_opts(&[Method::GRID], None),
             0.0,
         ),
         (
             "v1_kauai_crop_sites",
-            EncodeOptions {
-                method: Method::Sibson,
-                max_error: Some(ErrorBound::Abs(8.0)),
-                ..Default::default()
-            },
+            encode_opts(&[Method::SIBSON], Some(ErrorBound::Abs(8.0))),
             8.0,
         ),
         (
             "v1_kauai_crop_fis",
-            EncodeOptions {
-                method: Method::Fis,
-                max_error: Some(ErrorBound::Abs(150.0)),
-                ..Default::default()
-            },
+            encode_opts(&[Method::FIS], Some(ErrorBound::Abs(150.0))),
             150.0,
         ),
         (
             "v1_kauai_crop_haar",
-            EncodeOptions {
-                method: Method::Haar,
-                max_error: Some(ErrorBound::Abs(8.0)),
-                ..Default::default()
-            },
+            encode_opts(&[Method::HAAR], Some(ErrorBound::Abs(8.0))),
             8.0,
         ),
     ]

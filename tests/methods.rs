@@ -1,35 +1,27 @@
 //! The four representations through the container: each meets its bound, files may carry
 //! several sections for comparison, and `--section` picks one.
 
+mod common;
+
+use common::{corpus, decode_opts, encode_opts, read_corpus, stderr, tmp, vtz};
 use std::path::Path;
-use std::process::Command;
-use vtz::container::SectionKind;
-use vtz::{DecodeOptions, EncodeOptions, ErrorBound, Method, Window};
+use vtz::{ErrorBound, Method, SectionChoice, Window};
 
 fn crater() -> vtz::Raster {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("corpus/scape_crater.png");
-    vtz::raster::read_path(&p, &Default::default()).unwrap()
-}
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_vtz"))
+    read_corpus("scape_crater.png")
 }
 
 #[test]
 fn every_method_meets_its_bound_through_the_container() {
     let r = crater();
     for (method, pcts) in [
-        (Method::Fis, &[10.0, 20.0][..]),
-        (Method::Haar, &[0.3, 1.0, 3.0][..]),
-        (Method::Sibson, &[3.0][..]),
-        (Method::Grid, &[1.0][..]),
+        (Method::FIS, &[10.0, 20.0][..]),
+        (Method::HAAR, &[0.3, 1.0, 3.0][..]),
+        (Method::SIBSON, &[3.0][..]),
+        (Method::GRID, &[1.0][..]),
     ] {
         for &pct in pcts {
-            let opts = EncodeOptions {
-                method,
-                max_error: Some(ErrorBound::PercentOfRange(pct)),
-                ..Default::default()
-            };
+            let opts = encode_opts(&[method], Some(ErrorBound::PercentOfRange(pct)));
             let (bytes, rep) = vtz::encode_report(&r, &opts).unwrap();
             assert_eq!(rep.method, method);
             let back = vtz::decode(&bytes).unwrap();
@@ -47,14 +39,7 @@ fn every_method_meets_its_bound_through_the_container() {
                 width: 101,
                 height: 64,
             };
-            let part = vtz::decode_with(
-                &bytes,
-                &DecodeOptions {
-                    window: Some(win),
-                    ..Default::default()
-                },
-            )
-            .unwrap();
+            let part = vtz::decode_with(&bytes, &decode_opts(|o| o.window = Some(win))).unwrap();
             for y in 0..win.height {
                 for x in 0..win.width {
                     assert_eq!(
@@ -70,34 +55,29 @@ fn every_method_meets_its_bound_through_the_container() {
 #[test]
 fn a_file_can_carry_several_sections_and_the_smallest_is_primary() {
     let r = crater();
-    let opts = EncodeOptions {
-        method: Method::Sibson,
-        also: vec![Method::Fis, Method::Haar],
-        max_error: Some(ErrorBound::PercentOfRange(10.0)),
-        ..Default::default()
-    };
+    let opts = encode_opts(
+        &[Method::SIBSON, Method::FIS, Method::HAAR],
+        Some(ErrorBound::PercentOfRange(10.0)),
+    );
     let (bytes, rep) = vtz::encode_report(&r, &opts).unwrap();
     let info = vtz::info(&bytes, Default::default()).unwrap();
-    let kinds: Vec<SectionKind> = info.sections.iter().map(|e| e.kind).collect();
+    let kinds: Vec<Option<Method>> = info.sections.iter().map(|e| e.method).collect();
     assert_eq!(
         kinds,
-        [SectionKind::Sites, SectionKind::Fis, SectionKind::Haar]
+        [Some(Method::SIBSON), Some(Method::FIS), Some(Method::HAAR)]
     );
-    let primary = info.header.primary as usize;
+    let primary = info.primary;
     let smallest = (0..3)
-        .min_by_key(|&i| info.sections[i].length)
+        .min_by_key(|&i| info.sections[i].bytes)
         .expect("three");
     assert_eq!(primary, smallest);
-    assert_eq!(vtz::section_kind(rep.method), kinds[primary]);
+    assert_eq!(Some(rep.method), kinds[primary]);
     for (i, e) in info.sections.iter().enumerate() {
         // Only the primary is required: a decoder without the others' methods skips them.
-        assert_eq!(e.flags & vtz::container::SF_REQUIRED != 0, i == primary);
+        assert_eq!(e.required, i == primary);
         let back = vtz::decode_with(
             &bytes,
-            &DecodeOptions {
-                section: Some(i),
-                ..Default::default()
-            },
+            &decode_opts(|o| o.section = SectionChoice::Index(i)),
         )
         .unwrap();
         let c = vtz::metrics::compare(&r, &back).unwrap();
@@ -111,61 +91,58 @@ fn a_file_can_carry_several_sections_and_the_smallest_is_primary() {
 #[test]
 fn cli_writes_a_method_list_and_decodes_a_section_by_name() {
     let dir = tempfile::tempdir().unwrap();
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("corpus/scape_crater.png");
-    let out = dir.path().join("c.vtz");
-    let st = bin()
-        .args(["encode", "-q", "--max-error", "10%", "--method", "fis,haar"])
-        .arg(&src)
-        .arg("-o")
-        .arg(&out)
-        .status()
-        .unwrap();
-    assert!(st.success());
-    for (name, kind) in [("fis", SectionKind::Fis), ("haar", SectionKind::Haar)] {
-        let dec = dir.path().join(format!("{name}.tif"));
-        let o = bin()
-            .args(["decode", "-q", "--section", name])
-            .arg(&out)
-            .arg("-o")
-            .arg(&dec)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let back = vtz::raster::read_path(&dec, &Default::default()).unwrap();
+    let src = corpus("scape_crater.png");
+    let out = tmp(&dir, "c.vtz");
+    let o = vtz([
+        "encode",
+        "-q",
+        "--max-error",
+        "10%",
+        "--method",
+        "fis,haar",
+        &src,
+        "-o",
+        &out,
+    ]);
+    assert!(o.status.success());
+    for (name, method) in [("fis", Method::FIS), ("haar", Method::HAAR)] {
+        let dec = tmp(&dir, &format!("{name}.tif"));
+        let o = vtz(["decode", "-q", "--section", name, &out, "-o", &dec]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let back = vtz::read_path(Path::new(&dec), &Default::default()).unwrap();
         let bytes = std::fs::read(&out).unwrap();
         let info = vtz::info(&bytes, Default::default()).unwrap();
-        let idx = info.sections.iter().position(|e| e.kind == kind).unwrap();
+        let idx = info
+            .sections
+            .iter()
+            .position(|e| e.method == Some(method))
+            .unwrap();
         let direct = vtz::decode_with(
             &bytes,
-            &DecodeOptions {
-                section: Some(idx),
-                ..Default::default()
-            },
+            &decode_opts(|o| o.section = SectionChoice::Index(idx)),
         )
         .unwrap();
         assert_eq!(back.data, direct.data, "{name}");
     }
     // `info --stats` reports the FIS and Haar parameters.
-    let o = bin()
-        .args(["info", "--stats", "--json"])
-        .arg(&out)
-        .output()
-        .unwrap();
+    let o = vtz(["info", "--stats", "--json", &out]);
     assert!(o.status.success());
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(j["fis"]["k"].as_u64().unwrap() >= 2, "{j}");
     assert!(j["fis"]["iterations"].as_u64().unwrap() >= 1, "{j}");
     assert!(j["haar"]["levels"].as_u64().unwrap() >= 1, "{j}");
     // A section the file does not have: a one-line usage error.
-    let o = bin()
-        .args(["decode", "-q", "--section", "sibson"])
-        .arg(&out)
-        .arg("-o")
-        .arg(dir.path().join("x.tif"))
-        .output()
-        .unwrap();
+    let o = vtz([
+        "decode",
+        "-q",
+        "--section",
+        "sibson",
+        &out,
+        "-o",
+        &tmp(&dir, "x.tif"),
+    ]);
     assert_eq!(o.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = stderr(&o);
     assert!(
         err.contains("no sibson section") && err.lines().count() == 1,
         "{err}"
@@ -175,34 +152,24 @@ fn cli_writes_a_method_list_and_decodes_a_section_by_name() {
 #[test]
 fn fis_that_cannot_meet_a_bound_says_so() {
     let r = crater();
-    let opts = EncodeOptions {
-        method: Method::Fis,
-        max_error: Some(ErrorBound::PercentOfRange(0.5)),
-        ..Default::default()
-    };
+    let opts = encode_opts(&[Method::FIS], Some(ErrorBound::PercentOfRange(0.5)));
     let err = vtz::encode(&r, &opts).unwrap_err();
     assert!(matches!(err, vtz::Error::InvalidArgument { .. }), "{err}");
     assert!(err.to_string().contains("cannot meet"), "{err}");
     // `best` simply leaves FIS out.
-    let best = EncodeOptions {
-        max_error: Some(ErrorBound::PercentOfRange(0.5)),
-        ..Default::default()
-    };
+    let best = encode_opts(&[], Some(ErrorBound::PercentOfRange(0.5)));
     let (_, rep) = vtz::encode_report(&r, &best).unwrap();
-    assert_ne!(rep.method, Method::Fis);
+    assert_ne!(rep.method, Method::FIS);
 }
 
 #[test]
 fn fis_reproduces_the_papers_fixed_s_setting_without_a_bound() {
     let r = crater();
-    let opts = EncodeOptions {
-        method: Method::Fis,
-        fis_k: Some(16),
-        fis_s: Some(0.02),
-        ..Default::default()
-    };
+    let mut opts = encode_opts(&[Method::FIS], None);
+    opts.params.fis.k = Some(16);
+    opts.params.fis.s = Some(0.02);
     let (bytes, rep) = vtz::encode_report(&r, &opts).unwrap();
-    assert_eq!(rep.method, Method::Fis);
+    assert_eq!(rep.method, Method::FIS);
     let back = vtz::decode(&bytes).unwrap();
     let c = vtz::metrics::compare(&r, &back).unwrap();
     // The bound reported is the error measured on the decoded surface.
@@ -218,12 +185,8 @@ fn fis_reproduces_the_papers_fixed_s_setting_without_a_bound() {
         }
     }
     // FIS options without the fis method are a usage error.
-    let bad = EncodeOptions {
-        method: Method::Sibson,
-        fis_k: Some(8),
-        max_error: Some(ErrorBound::PercentOfRange(5.0)),
-        ..Default::default()
-    };
+    let mut bad = encode_opts(&[Method::SIBSON], Some(ErrorBound::PercentOfRange(5.0)));
+    bad.params.fis.k = Some(8);
     assert!(matches!(
         vtz::encode(&r, &bad),
         Err(vtz::Error::InvalidArgument { .. })

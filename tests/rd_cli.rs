@@ -3,39 +3,24 @@
 //! Runs on a small synthetic raster with the sibson and grid methods only, so it is fast
 //! and independent of the other methods.
 
-use std::process::{Command, Output};
+mod common;
+
+use common::{Kind, stderr, terrain, tmp, vtz};
+use std::process::Output;
+use vtz::SampleType;
 
 const COLUMNS: &str = "file,method,bound,bound_abs,samples,bytes,bps,ratio,rmse,max_error,\
                        rmse_pct,max_error_pct,enc_s,dec_s,bound_ok,written,sites,note";
 
-fn vtz(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vtz"))
-        .args(args)
-        .output()
-        .expect("run vtz")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn tmp(dir: &tempfile::TempDir, name: &str) -> String {
-    dir.path().join(name).to_string_lossy().into_owned()
-}
-
 /// A 48×40 hill with ridges, as `hill.f32` + `hill.json` in `dir`.
 fn hill(dir: &tempfile::TempDir) -> String {
     let (w, h) = (48usize, 40usize);
-    let mut bytes = Vec::with_capacity(w * h * 4);
-    for y in 0..h {
-        for x in 0..w {
-            let (fx, fy) = (x as f64 / w as f64, y as f64 / h as f64);
-            let v = 500.0 * (-((fx - 0.4).powi(2) + (fy - 0.6).powi(2)) * 6.0).exp()
-                + 30.0 * (fx * 17.0).sin() * (fy * 11.0).cos()
-                + 7.0 * ((x * 7 + y * 13) % 5) as f64;
-            bytes.extend_from_slice(&(v as f32).to_le_bytes());
-        }
-    }
+    let r = terrain(Kind::Hill, w, h, 0, false, SampleType::F32);
+    let bytes: Vec<u8> = r
+        .data
+        .iter()
+        .flat_map(|&v| (v as f32).to_le_bytes())
+        .collect();
     std::fs::write(dir.path().join("hill.f32"), bytes).unwrap();
     std::fs::write(
         dir.path().join("hill.json"),
@@ -59,7 +44,7 @@ fn writes_table_csv_markdown_and_plot() {
     let d = tempfile::tempdir().unwrap();
     let src = hill(&d);
     let (csv, md, png) = (tmp(&d, "rd.csv"), tmp(&d, "rd.md"), tmp(&d, "rd.png"));
-    let o = vtz(&[
+    let o = vtz([
         "rd",
         &src,
         "--methods",
@@ -115,7 +100,7 @@ fn writes_table_csv_markdown_and_plot() {
     assert!(png_bytes.len() > 5000, "a plot, not an empty image");
 
     // Outputs are not replaced without --force (checked before any encoding).
-    let o = vtz(&["rd", &src, "--methods", "grid", "--csv", &csv, "-q"]);
+    let o = vtz(["rd", &src, "--methods", "grid", "--csv", &csv, "-q"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("--force"), "{}", stderr(&o));
 }
@@ -125,7 +110,7 @@ fn json_rows_and_unavailable_methods() {
     let d = tempfile::tempdir().unwrap();
     let src = hill(&d);
     // Sibson cannot be lossless: its row is "not available", which is not a failure.
-    let o = vtz(&[
+    let o = vtz([
         "rd",
         &src,
         "--methods",
@@ -220,7 +205,7 @@ fn baseline_passes_against_itself_and_fails_on_growth() {
     );
 
     // Rows missing on either side are reported but do not fail.
-    let o = vtz(&[
+    let o = vtz([
         "rd",
         &src,
         "--methods",
@@ -263,7 +248,7 @@ fn bad_arguments_are_one_line_errors_with_exit_code_2() {
     // A baseline without the needed columns fails before any encoding.
     let bad = tmp(&d, "bad.csv");
     std::fs::write(&bad, "file,method\nhill.f32,grid\n").unwrap();
-    let o = vtz(&["rd", &src, "--methods", "grid", "--baseline", &bad]);
+    let o = vtz(["rd", &src, "--methods", "grid", "--baseline", &bad]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("no 'bound' column"), "{}", stderr(&o));
 }

@@ -1,34 +1,8 @@
 //! The `vtz render` command and `vtz compare --png`: pictures of the size and kind expected.
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
-fn vtz(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vtz"))
-        .args(args)
-        .output()
-        .expect("run vtz")
-}
-
-fn ok(o: &Output) {
-    assert!(
-        o.status.success(),
-        "vtz failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-}
-
-fn corpus(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("corpus")
-        .join(name)
-        .to_string_lossy()
-        .into_owned()
-}
-
-fn tmp(dir: &tempfile::TempDir, name: &str) -> String {
-    dir.path().join(name).to_string_lossy().into_owned()
-}
+use common::{corpus, ok, stderr, tmp, vtz};
 
 fn picture(path: &str) -> image::RgbImage {
     image::open(path).expect("a PNG picture").to_rgb8()
@@ -38,7 +12,7 @@ fn picture(path: &str) -> image::RgbImage {
 fn render_a_raster() {
     let d = tempfile::tempdir().unwrap();
     let out = tmp(&d, "crater.png");
-    let o = vtz(&["render", &corpus("scape_crater.png"), "-o", &out, "-q"]);
+    let o = vtz(["render", &corpus("scape_crater.png"), "-o", &out, "-q"]);
     ok(&o);
     let img = picture(&out);
     assert_eq!(img.dimensions(), (336, 459));
@@ -46,9 +20,9 @@ fn render_a_raster() {
     let first = *img.get_pixel(0, 0);
     assert!(img.pixels().any(|p| *p != first));
     // No clobbering without --force; --force replaces.
-    let o = vtz(&["render", &corpus("scape_crater.png"), "-o", &out, "-q"]);
+    let o = vtz(["render", &corpus("scape_crater.png"), "-o", &out, "-q"]);
     assert_eq!(o.status.code(), Some(2));
-    let o = vtz(&[
+    let o = vtz([
         "render",
         &corpus("scape_crater.png"),
         "-o",
@@ -64,7 +38,7 @@ fn render_a_raster() {
     ]);
     ok(&o);
     // --sites needs a .vtz.
-    let o = vtz(&[
+    let o = vtz([
         "render",
         &corpus("scape_crater.png"),
         "-o",
@@ -79,7 +53,7 @@ fn render_sites_and_error_map_of_a_vtz() {
     let d = tempfile::tempdir().unwrap();
     let x = tmp(&d, "x.vtz");
     let src = corpus("scape_crater.png");
-    ok(&vtz(&[
+    ok(&vtz([
         "encode",
         &src,
         "-o",
@@ -92,9 +66,9 @@ fn render_sites_and_error_map_of_a_vtz() {
     ]));
 
     let plain = tmp(&d, "plain.png");
-    ok(&vtz(&["render", &x, "-o", &plain, "-q"]));
+    ok(&vtz(["render", &x, "-o", &plain, "-q"]));
     let sites = tmp(&d, "sites.png");
-    ok(&vtz(&["render", &x, "--sites", "-o", &sites, "-q"]));
+    ok(&vtz(["render", &x, "--sites", "-o", &sites, "-q"]));
     let (a, b) = (picture(&plain), picture(&sites));
     assert_eq!(b.dimensions(), (336, 459));
     let red = b
@@ -105,7 +79,7 @@ fn render_sites_and_error_map_of_a_vtz() {
     assert!(red > 100, "only {red} site pixels drawn");
 
     let diff = tmp(&d, "diff.png");
-    ok(&vtz(&["compare", &src, &x, "--png", &diff]));
+    ok(&vtz(["compare", &src, &x, "--png", &diff]));
     let img = picture(&diff);
     assert_eq!(img.width(), 336);
     assert!(img.height() >= 459);
@@ -122,8 +96,8 @@ fn render_sites_and_error_map_of_a_vtz() {
 
     // A grid .vtz has no sites to show.
     let g = tmp(&d, "g.vtz");
-    ok(&vtz(&["encode", &src, "-o", &g, "--method", "grid", "-q"]));
-    let o = vtz(&["render", &g, "--sites", "-o", &tmp(&d, "g.png")]);
+    ok(&vtz(["encode", &src, "-o", &g, "--method", "grid", "-q"]));
+    let o = vtz(["render", &g, "--sites", "-o", &tmp(&d, "g.png")]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("sites section"));
+    assert!(stderr(&o).contains("sites section"));
 }

@@ -3,19 +3,12 @@
 //! their own format without change, and encode losslessly and within bounds.
 //! Skipped, with a message, when `../shared/corpus` is absent.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
-use vtz::{EncodeOptions, ErrorBound, Method, Raster};
+mod common;
 
-fn shared() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus");
-    if p.join("manifest.json").exists() {
-        Some(p)
-    } else {
-        eprintln!("skipped: {} is absent", p.display());
-        None
-    }
-}
+use common::{assert_same, encode_opts, shared_corpus, stderr, vtz};
+use std::ffi::OsStr;
+use std::path::Path;
+use vtz::{EncodeOptions, ErrorBound, Method};
 
 fn manifest(dir: &Path) -> Vec<serde_json::Value> {
     serde_json::from_slice::<Vec<serde_json::Value>>(
@@ -34,47 +27,22 @@ fn read_flags(original: &str) -> Vec<&'static str> {
 }
 
 fn convert(from: &Path, to: &Path, extra: &[&str]) {
-    let o = Command::new(env!("CARGO_BIN_EXE_vtz"))
-        .arg("convert")
-        .arg(from)
-        .arg(to)
-        .args(extra)
-        .arg("-q")
-        .output()
-        .unwrap();
+    let mut args = vec![OsStr::new("convert"), from.as_os_str(), to.as_os_str()];
+    args.extend(extra.iter().map(OsStr::new));
+    args.push(OsStr::new("-q"));
+    let o = vtz(&args);
     assert!(
         o.status.success(),
         "convert {} -> {}: {}",
         from.display(),
         to.display(),
-        String::from_utf8_lossy(&o.stderr)
+        stderr(&o)
     );
-}
-
-fn same(a: &Raster, b: &Raster, what: &str) {
-    assert_eq!((a.width, a.height), (b.width, b.height), "{what}");
-    assert_eq!(a.mask, b.mask, "{what}: mask");
-    assert_eq!(
-        a.nodata.map(f64::to_bits),
-        b.nodata.map(f64::to_bits),
-        "{what}: nodata"
-    );
-    assert_eq!(a.georef, b.georef, "{what}: georef");
-    assert_eq!(a.sample_type, b.sample_type, "{what}: sample type");
-    for i in 0..a.len() {
-        if a.is_valid(i) {
-            assert_eq!(
-                a.data[i].to_bits(),
-                b.data[i].to_bits(),
-                "{what}: sample {i}"
-            );
-        }
-    }
 }
 
 #[test]
 fn originals_convert_bit_exactly() {
-    let Some(dir) = shared() else { return };
+    let Some(dir) = shared_corpus() else { return };
     let tmp = tempfile::tempdir().unwrap();
     let mut done = 0;
     for m in manifest(&dir) {
@@ -97,17 +65,17 @@ fn originals_convert_bit_exactly() {
         let ext = Path::new(orig).extension().unwrap().to_str().unwrap();
         let again = tmp.path().join(format!("again_{name}.{ext}"));
         convert(&src, &again, &flags);
-        let ro = vtz::raster::ReadOptions {
-            png_mapping: (!flags.is_empty()).then(|| vtz::raster::png::PngMapping {
+        let ro = vtz::formats::ReadOptions {
+            png_mapping: (!flags.is_empty()).then(|| vtz::formats::PngMapping {
                 scale: 1.0,
                 offset: -32768.0,
                 nodata_code: Some(0),
             }),
             ..Default::default()
         };
-        let a = vtz::raster::read_path(&src, &ro).unwrap();
-        let b = vtz::raster::read_path(&again, &Default::default()).unwrap();
-        same(&a, &b, orig);
+        let a = vtz::read_path(&src, &ro).unwrap();
+        let b = vtz::read_path(&again, &Default::default()).unwrap();
+        assert_same(&a, &b, orig);
         if ext == "hgt" {
             assert!(
                 std::fs::read(&again).unwrap() == std::fs::read(&src).unwrap(),
@@ -121,19 +89,14 @@ fn originals_convert_bit_exactly() {
 
 #[test]
 fn every_corpus_raster_round_trips_through_vtz() {
-    let Some(dir) = shared() else { return };
+    let Some(dir) = shared_corpus() else { return };
     for m in manifest(&dir) {
         let name = m["name"].as_str().unwrap();
-        let r =
-            vtz::raster::read_path(&dir.join(format!("{name}.f32")), &Default::default()).unwrap();
+        let r = vtz::read_path(&dir.join(format!("{name}.f32")), &Default::default()).unwrap();
         let lossless = vtz::decode(&vtz::encode(&r, &EncodeOptions::default()).unwrap()).unwrap();
-        same(&r, &lossless, name);
+        assert_same(&r, &lossless, name);
         for pct in [0.1, 1.0] {
-            let opts = EncodeOptions {
-                max_error: Some(ErrorBound::PercentOfRange(pct)),
-                method: Method::Grid,
-                ..Default::default()
-            };
+            let opts = encode_opts(&[Method::GRID], Some(ErrorBound::PercentOfRange(pct)));
             let back = vtz::decode(&vtz::encode(&r, &opts).unwrap()).unwrap();
             let c = vtz::metrics::compare(&r, &back).unwrap();
             assert!(
@@ -150,20 +113,15 @@ fn every_corpus_raster_round_trips_through_vtz() {
 /// meet their bound (FIS may instead say it cannot meet it), nodata survives.
 #[test]
 fn every_corpus_raster_meets_its_bound_with_haar_and_fis() {
-    let Some(dir) = shared() else { return };
+    let Some(dir) = shared_corpus() else { return };
     for m in manifest(&dir) {
         let name = m["name"].as_str().unwrap();
-        let r =
-            vtz::raster::read_path(&dir.join(format!("{name}.f32")), &Default::default()).unwrap();
-        for (method, pct) in [(Method::Haar, 1.0), (Method::Fis, 10.0)] {
-            let opts = EncodeOptions {
-                max_error: Some(ErrorBound::PercentOfRange(pct)),
-                method,
-                ..Default::default()
-            };
+        let r = vtz::read_path(&dir.join(format!("{name}.f32")), &Default::default()).unwrap();
+        for (method, pct) in [(Method::HAAR, 1.0), (Method::FIS, 10.0)] {
+            let opts = encode_opts(&[method], Some(ErrorBound::PercentOfRange(pct)));
             let bytes = match vtz::encode(&r, &opts) {
                 Ok(b) => b,
-                Err(e) if method == Method::Fis && e.to_string().contains("cannot meet") => {
+                Err(e) if method == Method::FIS && e.to_string().contains("cannot meet") => {
                     continue;
                 }
                 Err(e) => panic!("{name} {method:?}: {e}"),

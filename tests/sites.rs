@@ -1,101 +1,14 @@
 //! The sites (Voronoi/Sibson) method: hard bound, determinism, windows, prefixes, bad input.
 
+mod common;
+
+use common::{Kind, Rng, bits, decode_opts, encode_opts, terrain};
 use proptest::prelude::*;
-use vtz::{
-    DecodeOptions, EncodeOptions, Error, ErrorBound, Method, Raster, SampleType, Scale, Window,
-};
-
-#[derive(Clone, Copy, Debug)]
-enum Kind {
-    Fbm,
-    Plateau,
-    Cliff,
-    Constant,
-}
-
-/// Deterministic synthetic terrains with optional nodata holes.
-fn terrain(kind: Kind, w: usize, h: usize, seed: u64, holes: bool, float: bool) -> Raster {
-    let mut s = seed | 1;
-    let mut rnd = move || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let phases: Vec<f64> = (0..12).map(|_| rnd() * std::f64::consts::TAU).collect();
-    let mut data = Vec::with_capacity(w * h);
-    for y in 0..h {
-        for x in 0..w {
-            let (fx, fy) = (x as f64, y as f64);
-            let v = match kind {
-                Kind::Fbm => {
-                    (0..6)
-                        .map(|o| {
-                            let f = 0.05 * 2f64.powi(o);
-                            (fx * f + phases[o as usize]).sin()
-                                * (fy * f * 1.3 + phases[o as usize + 6]).cos()
-                                * 100.0
-                                / 2f64.powi(o)
-                        })
-                        .sum::<f64>()
-                        + 500.0
-                }
-                Kind::Plateau => {
-                    if (fx - w as f64 / 2.0).hypot(fy - h as f64 / 2.0) < w.min(h) as f64 / 3.0 {
-                        800.0
-                    } else {
-                        200.0 + fx
-                    }
-                }
-                Kind::Cliff => {
-                    if fx > w as f64 * 0.6 {
-                        1000.0 + fy * 3.0
-                    } else {
-                        100.0 + (fx * 0.3).sin() * 20.0
-                    }
-                }
-                Kind::Constant => 42.0,
-            };
-            let v = v + (rnd() - 0.5) * 4.0;
-            data.push(if float { v as f32 as f64 } else { v.round() });
-        }
-    }
-    if holes {
-        for _ in 0..3 {
-            let (cx, cy, r) = (
-                rnd() * w as f64,
-                rnd() * h as f64,
-                1.0 + rnd() * w.min(h) as f64 / 5.0,
-            );
-            for y in 0..h {
-                for x in 0..w {
-                    if (x as f64 - cx).hypot(y as f64 - cy) < r {
-                        data[y * w + x] = -9999.0;
-                    }
-                }
-            }
-        }
-    }
-    Raster::from_values(
-        w,
-        h,
-        data,
-        Some(-9999.0),
-        if float {
-            SampleType::F32
-        } else {
-            SampleType::I16
-        },
-    )
-    .unwrap()
-}
+use vtz::internals::container;
+use vtz::{EncodeOptions, Error, ErrorBound, Method, Raster, SampleType, Scale, Window};
 
 fn sites_opts(e: f64) -> EncodeOptions {
-    EncodeOptions {
-        method: Method::Sibson,
-        max_error: Some(ErrorBound::Abs(e)),
-        ..Default::default()
-    }
+    encode_opts(&[Method::SIBSON], Some(ErrorBound::Abs(e)))
 }
 
 fn check_bound(r: &Raster, back: &Raster, e: f64) {
@@ -108,10 +21,6 @@ fn check_bound(r: &Raster, back: &Raster, e: f64) {
     }
 }
 
-fn bits(r: &Raster) -> Vec<u64> {
-    r.data.iter().map(|v| v.to_bits()).collect()
-}
-
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
 
@@ -121,13 +30,14 @@ proptest! {
         w in 1usize..48, h in 1usize..48, seed in any::<u64>(), holes in any::<bool>(), float in any::<bool>(),
         e in prop_oneof![Just(0.5), Just(1.0), 2.0f64..40.0],
     ) {
-        let r = terrain(kind, w, h, seed, holes, float);
+        let st = if float { SampleType::F32 } else { SampleType::I16 };
+        let r = terrain(kind, w, h, seed, holes, st);
         let bytes = vtz::encode(&r, &sites_opts(e)).unwrap();
         let back = vtz::decode(&bytes).unwrap();
         check_bound(&r, &back, e);
         prop_assert_eq!(bits(&back), bits(&vtz::decode(&bytes).unwrap()));
         for threads in [1, 3] {
-            let t = vtz::decode_with(&bytes, &DecodeOptions { threads, ..Default::default() }).unwrap();
+            let t = vtz::decode_with(&bytes, &decode_opts(|o| o.threads = threads)).unwrap();
             prop_assert_eq!(bits(&back), bits(&t));
         }
         // Windows stitched together give the same samples as the whole.
@@ -139,7 +49,7 @@ proptest! {
                 Window { x: 0, y: wy, width: wx, height: h - wy },
                 Window { x: wx, y: wy, width: w - wx, height: h - wy },
             ] {
-                let part = vtz::decode_with(&bytes, &DecodeOptions { window: Some(win), ..Default::default() }).unwrap();
+                let part = vtz::decode_with(&bytes, &decode_opts(|o| o.window = Some(win))).unwrap();
                 for yy in 0..win.height {
                     for xx in 0..win.width {
                         let a = part.data[yy * win.width + xx];
@@ -155,7 +65,7 @@ proptest! {
 #[test]
 fn tiny_rasters() {
     for (w, h) in [(1, 1), (1, 7), (7, 1), (2, 2), (3, 2)] {
-        let r = terrain(Kind::Fbm, w, h, 9, false, false);
+        let r = terrain(Kind::Fbm, w, h, 9, false, SampleType::I16);
         let back = vtz::decode(&vtz::encode(&r, &sites_opts(1.0)).unwrap()).unwrap();
         check_bound(&r, &back, 1.0);
     }
@@ -167,19 +77,12 @@ fn tiny_rasters() {
 
 #[test]
 fn prefixes_are_coarser_levels_and_sites_budget_is_kept() {
-    let r = terrain(Kind::Fbm, 120, 90, 5, true, true);
+    let r = terrain(Kind::Fbm, 120, 90, 5, true, SampleType::F32);
     let bytes = vtz::encode(&r, &sites_opts(0.8)).unwrap();
     let full = vtz::decode(&bytes).unwrap();
     let mut last = f64::INFINITY;
     for k in 1..=6 {
-        let lvl = vtz::decode_with(
-            &bytes,
-            &DecodeOptions {
-                levels: Some(k),
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let lvl = vtz::decode_with(&bytes, &decode_opts(|o| o.levels = Some(k))).unwrap();
         let c = vtz::metrics::compare(&r, &lvl).unwrap();
         assert_eq!(c.lost + c.invented, 0);
         assert!(
@@ -192,52 +95,43 @@ fn prefixes_are_coarser_levels_and_sites_budget_is_kept() {
     let c = vtz::metrics::compare(&r, &full).unwrap();
     assert!(c.max_error <= 0.8);
     for n in [4, 50, 300] {
-        let opts = EncodeOptions {
-            method: Method::Sibson,
-            sites: Some(n),
-            ..Default::default()
-        };
+        let mut opts = encode_opts(&[Method::SIBSON], None);
+        opts.params.sibson.sites = Some(n);
         let (_, rep) = vtz::encode_report(&r, &opts).unwrap();
-        let st = rep.sites.unwrap();
+        let st = rep.stats.unwrap();
+        let (sites, hull) = (st.count("sites").unwrap(), st.count("hull").unwrap());
         assert!(
-            st.sites <= n.max(st.hull),
+            sites <= (n as u64).max(hull),
             "{} sites for a budget of {n}",
-            st.sites
+            sites
         );
-        let part = vtz::decode_with(
-            &bytes,
-            &DecodeOptions {
-                sites: Some(n),
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let part = vtz::decode_with(&bytes, &decode_opts(|o| o.sites = Some(n))).unwrap();
         assert_eq!(part.valid_count(), r.valid_count());
     }
 }
 
 #[test]
 fn corrupted_and_truncated_sites_sections_are_errors() {
-    let r = terrain(Kind::Cliff, 40, 30, 3, true, false);
+    let r = terrain(Kind::Cliff, 40, 30, 3, true, SampleType::I16);
     let bytes = vtz::encode(&r, &sites_opts(2.0)).unwrap();
     for n in 0..bytes.len() {
         assert!(vtz::decode(&bytes[..n]).is_err(), "prefix {n}");
     }
     // Rewrite the section with garbage (valid checksums) so the section decoder itself sees it.
-    let c = vtz::container::read(&bytes, Default::default()).unwrap();
+    let c = container::read(&bytes, Default::default()).unwrap();
     let p = c.header.primary as usize;
-    let mut s = 7u64;
+    let mut rng = Rng(7);
     for trial in 0..300 {
         let mut cc = c.clone();
         let payload = &mut cc.sections[p].payload;
-        s = s.wrapping_mul(6364136223846793005).wrapping_add(trial);
+        let s = rng.next();
         let at = (s >> 33) as usize % payload.len();
         payload[at] ^= 1 << ((s >> 20) % 8);
         if trial % 3 == 0 {
             let keep = (s >> 40) as usize % payload.len();
             payload.truncate(keep);
         }
-        let b = vtz::container::write(&cc.header, &cc.sections);
+        let b = container::write(&cc.header, &cc.sections);
         match vtz::decode(&b) {
             Ok(back) => assert_eq!(back.mask, r.mask),
             Err(Error::Corrupt { .. }) | Err(Error::LimitExceeded { .. }) => {}
@@ -248,35 +142,24 @@ fn corrupted_and_truncated_sites_sections_are_errors() {
 
 #[test]
 fn sibson_method_without_a_stopping_rule_is_refused() {
-    let r = terrain(Kind::Fbm, 10, 10, 1, false, false);
-    let e = vtz::encode(
-        &r,
-        &EncodeOptions {
-            method: Method::Sibson,
-            ..Default::default()
-        },
-    )
-    .unwrap_err();
+    let r = terrain(Kind::Fbm, 10, 10, 1, false, SampleType::I16);
+    let e = vtz::encode(&r, &encode_opts(&[Method::SIBSON], None)).unwrap_err();
     assert!(matches!(e, Error::InvalidArgument { .. }), "{e}");
 }
 
 #[test]
 fn size_target_is_met_with_the_smallest_bound_that_fits() {
-    let r = terrain(Kind::Fbm, 64, 48, 11, false, true);
+    let r = terrain(Kind::Fbm, 64, 48, 11, false, SampleType::F32);
     for target in [300u64, 1500, 6000] {
-        let opts = EncodeOptions {
-            target_bytes: Some(target),
-            ..Default::default()
-        };
+        let mut opts = EncodeOptions::default();
+        opts.target_bytes = Some(target);
         let (bytes, rep) = vtz::encode_report(&r, &opts).unwrap();
         assert!(bytes.len() as u64 <= target, "{} > {target}", bytes.len());
         let back = vtz::decode(&bytes).unwrap();
         assert!(vtz::metrics::compare(&r, &back).unwrap().max_error <= rep.max_error + 1e-9);
     }
-    let tiny = EncodeOptions {
-        target_bytes: Some(10),
-        ..Default::default()
-    };
+    let mut tiny = EncodeOptions::default();
+    tiny.target_bytes = Some(10);
     assert!(matches!(
         vtz::encode(&r, &tiny),
         Err(Error::InvalidArgument { .. })
@@ -285,7 +168,7 @@ fn size_target_is_met_with_the_smallest_bound_that_fits() {
 
 #[test]
 fn scaled_decoding_samples_the_same_surface() {
-    let mut r = terrain(Kind::Fbm, 50, 40, 21, true, true);
+    let mut r = terrain(Kind::Fbm, 50, 40, 21, true, SampleType::F32);
     r.georef = Some(vtz::Georef {
         origin: [1000.0, 2000.0],
         pixel_size: [10.0, 10.0],
@@ -299,10 +182,7 @@ fn scaled_decoding_samples_the_same_surface() {
     let dec = |s: &str| {
         vtz::decode_with(
             &bytes,
-            &DecodeOptions {
-                scale: Some(vtz::Scale::parse(s).unwrap()),
-                ..Default::default()
-            },
+            &decode_opts(|o| o.scale = Some(vtz::Scale::parse(s).unwrap())),
         )
         .unwrap()
     };

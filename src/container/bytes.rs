@@ -14,9 +14,6 @@ impl<'a> ByteReader<'a> {
     pub fn new(data: &'a [u8], what: &'a str) -> Self {
         ByteReader { data, pos: 0, what }
     }
-    pub fn pos(&self) -> usize {
-        self.pos
-    }
     pub fn remaining(&self) -> usize {
         self.data.len() - self.pos
     }

@@ -2,7 +2,7 @@
 
 use super::bytes::{ByteReader, PutLe};
 use crate::error::{Error, Result};
-use crate::raster::{GeoKeys, Georef, RasterType, SampleType, ValueMapping};
+use crate::model::{GeoKeys, Georef, RasterType, SampleType, ValueMapping};
 
 /// Largest header body a decoder accepts (the spec's limit).
 pub const MAX_HEADER_LEN: u32 = 1 << 20;
@@ -30,7 +30,7 @@ pub struct Header {
 impl Header {
     /// The header describing raster `r` (its size, sample type, mapping, nodata, valid
     /// range and georef); `primary` is 0.
-    pub fn of(r: &crate::raster::Raster) -> Result<Header> {
+    pub fn of(r: &crate::model::Raster) -> Result<Header> {
         let w = u32::try_from(r.width).map_err(|_| Error::limit("raster wider than 2^32"))?;
         let h = u32::try_from(r.height).map_err(|_| Error::limit("raster taller than 2^32"))?;
         if w > i32::MAX as u32 || h > i32::MAX as u32 {

@@ -24,74 +24,47 @@ pub const DIR_ENTRY_LEN: usize = 16;
 pub const SF_REQUIRED: u16 = 1;
 const SF_KNOWN: u16 = SF_REQUIRED;
 
-/// Section types (spec/FORMAT.md, "Section types").
+/// A section type code (spec/FORMAT.md, "Section types"). The container knows the framing
+/// types (mask, metadata) and the reserved residual type; the codes of the methods' sections
+/// belong to the methods, and the codec names them to the reader ([`KindNames`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum SectionKind {
-    /// Validity mask (nodata samples).
-    Mask,
-    /// Quantized or lossless grid of samples (the trivial representation).
-    Grid,
-    /// Greedy Voronoi/Sibson sites (reserved).
-    Sites,
-    /// Fractal interpolation surface coefficients (reserved).
-    Fis,
-    /// Haar wavelet coefficients (reserved).
-    Haar,
-    /// Residual layer (reserved).
-    Residual,
-    /// Free-form UTF-8 JSON metadata.
-    Metadata,
-    /// A type this version does not know.
-    Unknown(u16),
-}
+pub struct SectionKind(pub u16);
 
 impl SectionKind {
+    /// Validity mask (nodata samples).
+    pub const MASK: SectionKind = SectionKind(1);
+    /// Residual layer (reserved).
+    pub const RESIDUAL: SectionKind = SectionKind(6);
+    /// Free-form UTF-8 JSON metadata.
+    pub const METADATA: SectionKind = SectionKind(7);
+
     pub fn code(self) -> u16 {
-        match self {
-            SectionKind::Mask => 1,
-            SectionKind::Grid => 2,
-            SectionKind::Sites => 3,
-            SectionKind::Fis => 4,
-            SectionKind::Haar => 5,
-            SectionKind::Residual => 6,
-            SectionKind::Metadata => 7,
-            SectionKind::Unknown(c) => c,
-        }
+        self.0
     }
     pub fn from_code(c: u16) -> SectionKind {
-        match c {
-            1 => SectionKind::Mask,
-            2 => SectionKind::Grid,
-            3 => SectionKind::Sites,
-            4 => SectionKind::Fis,
-            5 => SectionKind::Haar,
-            6 => SectionKind::Residual,
-            7 => SectionKind::Metadata,
-            c => SectionKind::Unknown(c),
-        }
+        SectionKind(c)
     }
-    pub fn name(self) -> String {
+    /// The name of a framing or reserved type, `None` for the methods' types.
+    fn framing_name(self) -> Option<&'static str> {
         match self {
-            SectionKind::Mask => "mask".into(),
-            SectionKind::Grid => "grid".into(),
-            SectionKind::Sites => "sites".into(),
-            SectionKind::Fis => "fis".into(),
-            SectionKind::Haar => "haar".into(),
-            SectionKind::Residual => "residual".into(),
-            SectionKind::Metadata => "metadata".into(),
-            SectionKind::Unknown(c) => format!("unknown-{c}"),
+            SectionKind::MASK => Some("mask"),
+            SectionKind::RESIDUAL => Some("residual"),
+            SectionKind::METADATA => Some("metadata"),
+            _ => None,
         }
     }
-    /// Whether a section of this kind represents the samples (can be a primary section).
-    pub fn is_representation(self) -> bool {
-        matches!(
-            self,
-            SectionKind::Grid
-                | SectionKind::Sites
-                | SectionKind::Fis
-                | SectionKind::Haar
-                | SectionKind::Residual
-        )
+}
+
+/// The names of the section types the methods own (`None` for a code no method owns); the
+/// codec passes its registry's so the container can name and check them without knowing
+/// any method.
+pub type KindNames = fn(SectionKind) -> Option<&'static str>;
+
+/// The name of a section type: framing, a method's, or `unknown-N`.
+pub fn kind_name(k: SectionKind, names: KindNames) -> String {
+    match k.framing_name().or_else(|| names(k)) {
+        Some(n) => n.to_string(),
+        None => format!("unknown-{}", k.0),
     }
 }
 
@@ -107,6 +80,8 @@ pub struct Section {
 #[derive(Clone, Debug, PartialEq)]
 pub struct SectionEntry {
     pub kind: SectionKind,
+    /// The type's name (`unknown-N` for a type this decoder does not know).
+    pub name: String,
     pub flags: u16,
     pub crc: u32,
     pub offset: u64,
@@ -125,7 +100,7 @@ pub struct Limits {
 impl Default for Limits {
     fn default() -> Self {
         Limits {
-            max_samples: crate::raster::DEFAULT_MAX_SAMPLES,
+            max_samples: crate::model::DEFAULT_MAX_SAMPLES,
             max_section_bytes: 1 << 32,
         }
     }
@@ -181,7 +156,7 @@ pub struct ContainerReader<R> {
 }
 
 impl<R: Read + Seek> ContainerReader<R> {
-    pub fn new(mut inner: R, limits: Limits) -> Result<Self> {
+    pub fn new(mut inner: R, limits: Limits, names: KindNames) -> Result<Self> {
         let file_len = inner
             .seek(SeekFrom::End(0))
             .map_err(|e| Error::io("measuring the file", e))?;
@@ -274,6 +249,8 @@ impl<R: Read + Seek> ContainerReader<R> {
         let mut entries = Vec::with_capacity(count as usize);
         for i in 0..count {
             let kind = SectionKind::from_code(r.u16("section type")?);
+            let name = kind_name(kind, names);
+            let known = kind.framing_name().is_some() || names(kind).is_some();
             let flags = r.u16("section flags")?;
             let crc = r.u32("section checksum")?;
             let length = r.u64("section length")?;
@@ -283,22 +260,20 @@ impl<R: Read + Seek> ContainerReader<R> {
             if flags & !SF_KNOWN != 0 {
                 return Err(Error::unsupported(format!(
                     "section {i} ({}): unknown flags 0x{:04x}",
-                    kind.name(),
+                    name,
                     flags & !SF_KNOWN
                 )));
             }
-            if let SectionKind::Unknown(c) = kind {
-                if flags & SF_REQUIRED != 0 {
-                    return Err(Error::unsupported(format!(
-                        "section {i} has type {c}, which this decoder does not know and the file requires"
-                    )));
-                }
+            if !known && flags & SF_REQUIRED != 0 {
+                return Err(Error::unsupported(format!(
+                    "section {i} has type {}, which this decoder does not know and the file requires",
+                    kind.0
+                )));
             }
             if length > limits.max_section_bytes {
                 return Err(Error::limit(format!(
                     "section {i} ({}) of {length} bytes is over the limit of {}",
-                    kind.name(),
-                    limits.max_section_bytes
+                    name, limits.max_section_bytes
                 )));
             }
             let end = offset
@@ -307,11 +282,12 @@ impl<R: Read + Seek> ContainerReader<R> {
                 .ok_or_else(|| {
                     Error::corrupt(format!(
                         "file is truncated in section {i} ({}): it needs {length} bytes at offset {offset}, the file has {file_len}",
-                        kind.name()
+                        name
                     ))
                 })?;
             entries.push(SectionEntry {
                 kind,
+                name,
                 flags,
                 crc,
                 offset,
@@ -327,13 +303,11 @@ impl<R: Read + Seek> ContainerReader<R> {
         }
         if count > 0 || header.primary != 0 {
             match entries.get(header.primary as usize) {
-                Some(e)
-                    if e.kind.is_representation() || matches!(e.kind, SectionKind::Unknown(_)) => {}
+                Some(e) if e.kind != SectionKind::MASK && e.kind != SectionKind::METADATA => {}
                 Some(e) => {
                     return Err(Error::corrupt(format!(
                         "primary section {} is a {} section, not a representation",
-                        header.primary,
-                        e.kind.name()
+                        header.primary, e.name
                     )));
                 }
                 None => {
@@ -370,7 +344,7 @@ impl<R: Read + Seek> ContainerReader<R> {
     /// The validity mask (from the first mask section), or `None` when every sample is valid.
     pub fn read_mask(&mut self) -> Result<Option<Vec<bool>>> {
         let n = self.header.samples() as usize;
-        match self.find(SectionKind::Mask) {
+        match self.find(SectionKind::MASK) {
             Some(i) => Ok(Some(mask::decode(&self.read_section(i)?, n)?)),
             None => Ok(None),
         }
@@ -388,15 +362,11 @@ impl<R: Read + Seek> ContainerReader<R> {
             .map_err(|err| Error::io("seeking", err))?;
         // The length was checked against the file length when the directory was read.
         let mut buf = vec![0u8; e.length as usize];
-        read_exact(
-            &mut self.inner,
-            &mut buf,
-            &format!("{} section", e.kind.name()),
-        )?;
+        read_exact(&mut self.inner, &mut buf, &format!("{} section", e.name))?;
         if crc32fast::hash(&buf) != e.crc {
             return Err(Error::corrupt(format!(
                 "section {i} ({}): checksum mismatch",
-                e.kind.name()
+                e.name
             )));
         }
         Ok(buf)
@@ -404,6 +374,7 @@ impl<R: Read + Seek> ContainerReader<R> {
 }
 
 /// A whole file in memory: header plus every section (checksums verified).
+#[cfg(any(test, feature = "internals"))]
 #[derive(Clone, Debug, PartialEq)]
 pub struct Container {
     pub header: Header,
@@ -411,8 +382,9 @@ pub struct Container {
 }
 
 /// Parse a complete file from memory, verifying every checksum.
-pub fn read(bytes: &[u8], limits: Limits) -> Result<Container> {
-    let mut r = ContainerReader::new(std::io::Cursor::new(bytes), limits)?;
+#[cfg(any(test, feature = "internals"))]
+pub fn read(bytes: &[u8], limits: Limits, names: KindNames) -> Result<Container> {
+    let mut r = ContainerReader::new(std::io::Cursor::new(bytes), limits, names)?;
     let mut sections = Vec::with_capacity(r.entries().len());
     for i in 0..r.entries().len() {
         let payload = r.read_section(i)?;

@@ -37,7 +37,7 @@
 //!
 //! # Binarisations
 //!
-//! [`BitTree`] codes a fixed-width symbol MSB first; [`UIntModel`] codes a `u64` as an
+//! `BitTree` (tests) codes a fixed-width symbol MSB first; [`UIntModel`] codes a `u64` as an
 //! adaptive Elias-gamma code (unary bit length + mantissa, the top mantissa bits adaptive);
 //! [`IntModel`] codes an `i64` as zero flag + sign + magnitude.
 
@@ -76,8 +76,27 @@ impl Default for Bit {
 
 impl Bit {
     /// Current probability that the next decision is `true`, in units of 2^-16.
+    #[cfg(test)]
     pub fn p1(&self) -> u32 {
         PROB_ONE - self.p0 as u32
+    }
+
+    /// Where a decision splits `range`: the width of the `false` side (the lower one).
+    #[inline(always)]
+    fn bound(&self, range: u32) -> u32 {
+        (range >> PROB_BITS) * self.p0 as u32
+    }
+
+    /// Narrow `range` to the side of `bound` that `value` took, then adapt: the step the
+    /// encoder and the decoder take alike for each decision.
+    #[inline(always)]
+    fn narrow(&mut self, range: &mut u32, bound: u32, value: bool) {
+        if value {
+            *range -= bound;
+        } else {
+            *range = bound;
+        }
+        self.update(value);
     }
 
     #[inline(always)]
@@ -138,14 +157,11 @@ impl Encoder {
     /// Code one decision with the adaptive probability `bit`, then adapt it.
     #[inline]
     pub fn encode(&mut self, bit: &mut Bit, value: bool) {
-        let bound = (self.range >> PROB_BITS) * bit.p0 as u32;
+        let bound = bit.bound(self.range);
         if value {
             self.low += bound as u64;
-            self.range -= bound;
-        } else {
-            self.range = bound;
         }
-        bit.update(value);
+        bit.narrow(&mut self.range, bound, value);
         while self.range < TOP {
             self.range <<= 8;
             self.shift_low();
@@ -238,15 +254,12 @@ impl<'a> Decoder<'a> {
     /// Decode one decision coded with the adaptive probability `bit`, then adapt it.
     #[inline]
     pub fn decode(&mut self, bit: &mut Bit) -> bool {
-        let bound = (self.range >> PROB_BITS) * bit.p0 as u32;
+        let bound = bit.bound(self.range);
         let value = self.code >= bound;
         if value {
             self.code -= bound;
-            self.range -= bound;
-        } else {
-            self.range = bound;
         }
-        bit.update(value);
+        bit.narrow(&mut self.range, bound, value);
         while self.range < TOP {
             self.range <<= 8;
             self.code = (self.code << 8) | self.next_byte();
@@ -314,6 +327,7 @@ impl<'a> Decoder<'a> {
     }
 }
 
+#[cfg(test)]
 /// A `bits`-bit symbol (1 ≤ bits ≤ 16) coded MSB first with one adaptive context per
 /// tree node (2^bits - 1 contexts), so it learns any distribution over the 2^bits values.
 #[derive(Clone, Debug)]
@@ -323,6 +337,7 @@ pub struct BitTree {
     probs: Box<[Bit]>,
 }
 
+#[cfg(test)]
 impl BitTree {
     /// # Panics
     /// If `bits` is not in 1..=16.
@@ -332,10 +347,6 @@ impl BitTree {
             bits,
             probs: vec![Bit::default(); 1 << bits].into_boxed_slice(),
         }
-    }
-
-    pub fn bits(&self) -> u32 {
-        self.bits
     }
 
     /// Code the low `bits` bits of `symbol`.
@@ -715,39 +726,19 @@ mod tests {
     proptest! {
         #[test]
         fn uint_round_trip(values in prop::collection::vec(any_magnitude_u64(), 0..300)) {
-            let mut model = UIntModel::new();
-            let mut enc = Encoder::new();
-            for &v in &values {
-                model.encode(&mut enc, v);
-            }
-            let bytes = enc.finish();
-            let mut model = UIntModel::new();
-            let mut dec = Decoder::new(&bytes).unwrap();
-            for &v in &values {
-                prop_assert_eq!(model.decode(&mut dec).unwrap(), v);
-            }
-            dec.finish().unwrap();
+            let bytes = encode_all(&values, UIntModel::encode);
+            prop_assert_eq!(decode_all(&bytes, values.len(), UIntModel::decode).unwrap(), values);
         }
 
         #[test]
         fn int_round_trip(values in prop::collection::vec(any_magnitude_i64(), 0..300)) {
-            let mut model = IntModel::new();
-            let mut enc = Encoder::new();
-            for &v in &values {
-                model.encode(&mut enc, v);
-            }
-            let bytes = enc.finish();
-            let mut model = IntModel::new();
-            let mut dec = Decoder::new(&bytes).unwrap();
-            for &v in &values {
-                prop_assert_eq!(model.decode(&mut dec).unwrap(), v);
-            }
-            dec.finish().unwrap();
+            let bytes = encode_all(&values, IntModel::encode);
+            prop_assert_eq!(decode_all(&bytes, values.len(), IntModel::decode).unwrap(), values);
         }
 
         #[test]
         fn garbage_never_panics(bytes in prop::collection::vec(any::<u8>(), 0..64), n in 0usize..400) {
-            let _ = decode_ints(&bytes, n);
+            let _ = decode_all(&bytes, n, IntModel::decode);
             if let Ok(mut dec) = Decoder::new(&bytes) {
                 let mut ctx = [Bit::default(); 4];
                 let mut tree = BitTree::new(5);
@@ -761,11 +752,28 @@ mod tests {
         }
     }
 
-    fn decode_ints(bytes: &[u8], n: usize) -> Result<Vec<i64>> {
-        let mut model = IntModel::new();
+    /// `values` through one fresh model coded with `encode` (e.g. [`IntModel::encode`]).
+    fn encode_all<M: Default, T: Copy>(
+        values: &[T],
+        encode: fn(&mut M, &mut Encoder, T),
+    ) -> Vec<u8> {
+        let mut model = M::default();
+        let mut enc = Encoder::new();
+        values.iter().for_each(|&v| encode(&mut model, &mut enc, v));
+        enc.finish()
+    }
+
+    /// `n` values through one fresh model decoded with `decode` (e.g. [`IntModel::decode`]),
+    /// then [`Decoder::finish`].
+    fn decode_all<M: Default, T>(
+        bytes: &[u8],
+        n: usize,
+        decode: fn(&mut M, &mut Decoder) -> Result<T>,
+    ) -> Result<Vec<T>> {
+        let mut model = M::default();
         let mut dec = Decoder::new(bytes)?;
         let out = (0..n)
-            .map(|_| model.decode(&mut dec))
+            .map(|_| decode(&mut model, &mut dec))
             .collect::<Result<Vec<_>>>()?;
         dec.finish()?;
         Ok(out)
@@ -781,40 +789,36 @@ mod tests {
             .collect()
     }
 
-    fn encode_ints(values: &[i64]) -> Vec<u8> {
-        let mut model = IntModel::new();
-        let mut enc = Encoder::new();
-        values.iter().for_each(|&v| model.encode(&mut enc, v));
-        enc.finish()
-    }
-
     #[test]
     fn every_truncation_is_an_error() {
         let values = laplacian(&mut Rng(9), 500, 20.0);
-        let bytes = encode_ints(&values);
-        assert_eq!(decode_ints(&bytes, values.len()).unwrap(), values);
+        let bytes = encode_all(&values, IntModel::encode);
+        assert_eq!(
+            decode_all(&bytes, values.len(), IntModel::decode).unwrap(),
+            values
+        );
         for len in 0..bytes.len() {
             assert!(
-                decode_ints(&bytes[..len], values.len()).is_err(),
+                decode_all(&bytes[..len], values.len(), IntModel::decode).is_err(),
                 "len {len}"
             );
         }
         let mut longer = bytes.clone();
         longer.push(0);
-        assert!(decode_ints(&longer, values.len()).is_err());
+        assert!(decode_all(&longer, values.len(), IntModel::decode).is_err());
     }
 
     #[test]
     fn most_corruption_is_detected() {
         let values = laplacian(&mut Rng(11), 300, 10.0);
-        let bytes = encode_ints(&values);
+        let bytes = encode_all(&values, IntModel::encode);
         let mut rng = Rng(12);
         let (mut undetected, trials) = (0, 2000);
         for _ in 0..trials {
             let mut bad = bytes.clone();
             let i = rng.below(bad.len() as u64) as usize;
             bad[i] ^= 1 << rng.below(8);
-            match decode_ints(&bad, values.len()) {
+            match decode_all(&bad, values.len(), IntModel::decode) {
                 Ok(v) if v != values => undetected += 1,
                 Ok(_) => panic!("a flipped bit decoded to the same data"),
                 Err(_) => {}
@@ -833,7 +837,7 @@ mod tests {
         for _ in 0..2000 {
             let len = 4 + rng.below(200) as usize;
             let bytes: Vec<u8> = (0..len).map(|_| rng.next() as u8).collect();
-            if decode_ints(&bytes, 100).is_ok() {
+            if decode_all(&bytes, 100, IntModel::decode).is_ok() {
                 accepted += 1;
             }
         }
@@ -853,14 +857,13 @@ mod tests {
                 .values()
                 .map(|&c| -(c as f64) * (c as f64 / n).log2())
                 .sum();
-            let coded = encode_ints(&values).len() as f64 * 8.0;
+            let coded = encode_all(&values, IntModel::encode).len() as f64 * 8.0;
             // zig-zag into a UIntModel, the alternative binarisation
-            let mut model = UIntModel::new();
-            let mut enc = Encoder::new();
-            for &v in &values {
-                model.encode(&mut enc, crate::entropy::varint::zigzag(v));
-            }
-            let zz = enc.finish().len() as f64 * 8.0;
+            let zigzagged: Vec<u64> = values
+                .iter()
+                .map(|&v| crate::entropy::varint::zigzag(v))
+                .collect();
+            let zz = encode_all(&zigzagged, UIntModel::encode).len() as f64 * 8.0;
             eprintln!(
                 "scale {scale}: entropy {:.4} b/sym, IntModel {:.4} (+{:.2} %), zig-zag {:.4} (+{:.2} %)",
                 h / n,

@@ -4,7 +4,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
 use std::time::Duration;
-use vtz::raster::{self, Format, ReadOptions, WriteOptions, png::PngMapping};
+use vtz::formats::{Format, PngMapping, ReadOptions, WriteOptions};
 use vtz::{Error, Raster, Result};
 
 /// Global output settings.
@@ -114,7 +114,7 @@ pub fn read_raster(path: &Path, format: Option<Format>, opts: &RasterOpts) -> Re
         png_mapping: opts.mapping(),
         ..Default::default()
     };
-    raster::read_path(path, &ro)
+    vtz::read_path(path, &ro)
 }
 
 pub fn write_options(format: Option<Format>, force: bool, opts: &RasterOpts) -> WriteOptions {
@@ -155,4 +155,14 @@ pub fn is_vtz(path: &Path, format: Option<Format>) -> bool {
             && path
                 .extension()
                 .is_some_and(|e| e.eq_ignore_ascii_case("vtz")))
+}
+
+/// A statistic as JSON.
+pub fn stat_json(v: vtz::StatValue) -> serde_json::Value {
+    match v {
+        vtz::StatValue::Count(n) => n.into(),
+        vtz::StatValue::Number(x) => x.into(),
+        vtz::StatValue::Counts(l) => l.into(),
+        _ => serde_json::Value::Null,
+    }
 }

@@ -33,8 +33,8 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let rb = ui.busy("reading", || common::read_raster(&a.b, None, &a.raster))?;
     let c = vtz::metrics::compare(&ra, &rb)?;
     if let Some(png) = &a.png {
-        let map = ui.busy("drawing", || vtz::render::error_map(&ra, &rb, None))?;
-        vtz::fsio::write_file(png, map, a.force)?;
+        let map = ui.busy("drawing", || vtz::viz::hillshade::error_map(&ra, &rb, None))?;
+        vtz::formats::write_file(png, map, a.force)?;
         ui.say(format!(
             "{}: error map, full colour at ±{}",
             png.display(),

@@ -29,9 +29,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     common::check_distinct(&a.input, &a.output)?;
     let raster = ui.busy("reading", || common::read_raster(&a.input, from, &a.raster))?;
     let wo = common::write_options(to, a.force, &a.raster);
-    ui.busy("writing", || {
-        vtz::raster::write_path(&raster, &a.output, &wo)
-    })?;
+    ui.busy("writing", || vtz::write_path(&raster, &a.output, &wo))?;
     ui.say(format!(
         "{} → {}: {}x{} {}",
         a.input.display(),

@@ -41,42 +41,19 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let format = common::parse_format(a.format.as_deref())?;
     common::check_distinct(&a.input, &a.output)?;
     let bytes = common::read_file(&a.input)?;
-    let section = match a.section.as_deref() {
-        None => None,
-        Some(s) => Some(match s.parse::<usize>() {
-            Ok(i) => i,
-            Err(_) => {
-                let m = vtz::Method::parse(s)?;
-                let info = vtz::info(&bytes, Default::default())
-                    .map_err(|e| e.context(a.input.display()))?;
-                info.sections
-                    .iter()
-                    .position(|e| e.kind == vtz::section_kind(m))
-                    .ok_or_else(|| {
-                        vtz::Error::invalid(format!(
-                            "{} has no {} section",
-                            a.input.display(),
-                            m.name()
-                        ))
-                    })?
-            }
-        }),
-    };
-    let opts = DecodeOptions {
-        section,
-        sites: a.sites,
-        levels: a.level,
-        window: a.window.as_deref().map(vtz::Window::parse).transpose()?,
-        scale: a.scale.as_deref().map(vtz::Scale::parse).transpose()?,
-        ..Default::default()
-    };
+    let mut opts = DecodeOptions::default();
+    if let Some(s) = a.section.as_deref() {
+        opts.section = s.parse()?;
+    }
+    opts.sites = a.sites;
+    opts.levels = a.level;
+    opts.window = a.window.as_deref().map(str::parse).transpose()?;
+    opts.scale = a.scale.as_deref().map(str::parse).transpose()?;
     let raster = ui
         .busy("decoding", || vtz::decode_with(&bytes, &opts))
         .map_err(|e| e.context(a.input.display()))?;
     let wo = common::write_options(format, a.force, &a.raster);
-    ui.busy("writing", || {
-        vtz::raster::write_path(&raster, &a.output, &wo)
-    })?;
+    ui.busy("writing", || vtz::write_path(&raster, &a.output, &wo))?;
     ui.say(format!(
         "{}: {}x{} {}",
         a.output.display(),

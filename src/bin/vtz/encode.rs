@@ -76,15 +76,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let raster = ui.busy("reading", || {
         common::read_raster(&a.input, format, &a.raster)
     })?;
-    let norm = match a.norm.to_ascii_lowercase().as_str() {
-        "linf" | "max" => vtz::sites::Norm::Linf,
-        "l2" | "rms" => vtz::sites::Norm::L2,
-        o => {
-            return Err(vtz::Error::invalid(format!(
-                "unknown norm '{o}' (linf, l2)"
-            )));
-        }
-    };
+    let norm: vtz::Norm = a.norm.parse()?;
     let target_bytes = match (a.size, a.bps) {
         (Some(s), _) => Some(s),
         (None, Some(b)) if b > 0.0 && b.is_finite() => {
@@ -95,32 +87,19 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         }
         (None, None) => None,
     };
-    let methods = a
-        .method
-        .split(',')
-        .map(vtz::Method::parse)
-        .collect::<Result<Vec<_>>>()?;
-    if methods.len() > 1 && methods.contains(&vtz::Method::Best) {
-        return Err(vtz::Error::invalid(
-            "'best' cannot be part of a method list",
-        ));
-    }
-    let opts = EncodeOptions {
-        max_error: bound,
-        rmse: a.rmse.as_deref().map(ErrorBound::parse).transpose()?,
-        sites: a.sites,
-        norm,
-        method: methods[0],
-        also: methods[1..].to_vec(),
-        fis_k: a.fis_k,
-        fis_s: a.fis_s,
-        step_factor: a.step_factor,
-        target_bytes,
-        ..Default::default()
-    };
+    let mut opts = EncodeOptions::default();
+    opts.max_error = bound;
+    opts.methods = vtz::Method::parse_list(&a.method)?;
+    opts.params.sibson.rmse = a.rmse.as_deref().map(ErrorBound::parse).transpose()?;
+    opts.params.sibson.sites = a.sites;
+    opts.params.sibson.norm = norm;
+    opts.params.sibson.step_factor = a.step_factor;
+    opts.params.fis.k = a.fis_k;
+    opts.params.fis.s = a.fis_s;
+    opts.target_bytes = target_bytes;
     let (bytes, report) = ui.progress("encoding", |p| vtz::encode_progress(&raster, &opts, p))?;
     let n = bytes.len() as u64;
-    vtz::fsio::write_file(&output, bytes, a.force)?;
+    vtz::formats::write_file(&output, bytes, a.force)?;
     let bps = vtz::metrics::bits_per_sample(n, raster.len());
     let range = raster.valid_range().map_or(0.0, |(lo, hi)| hi - lo);
     let pct = if range > 0.0 {
@@ -128,6 +107,8 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     } else {
         0.0
     };
+    let sites = report.stats.as_ref().and_then(|s| s.count("sites"));
+    let stat = |k: &str| report.stats.as_ref().and_then(|s| s.get(k).cloned());
     if a.json {
         let j = serde_json::json!({
             "input": a.input, "output": output, "bytes": n, "samples": raster.len(),
@@ -136,20 +117,24 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             "max_error": report.max_error, "max_error_pct": pct,
             "lossless": report.max_error == 0.0,
             "method": report.method.name(),
-            "sites": report.sites.as_ref().map(|s| s.sites),
-            "levels": report.sites.as_ref().map(|s| s.levels.clone()),
-            "position_bits_per_site": report.sites.as_ref().map(|s| s.position_bits / s.sites.max(1) as f64),
-            "height_bits_per_site": report.sites.as_ref().map(|s| s.height_bits / s.sites.max(1) as f64),
+            "sites": sites,
+            "levels": stat("levels").map(common::stat_json),
+            "position_bits_per_site": stat("position_bits_per_site").map(common::stat_json),
+            "height_bits_per_site": stat("height_bits_per_site").map(common::stat_json),
         });
         println!("{j}");
     } else {
-        let what = if report.max_error == 0.0 && report.sites.is_none() {
+        let what = if report.max_error == 0.0 && sites.is_none() {
             "lossless".to_string()
         } else {
             format!("max error ≤ {} ({pct:.3} % of range)", report.max_error)
         };
-        let what = match &report.sites {
-            Some(s) => format!("{what}, {} sites in {} levels", s.sites, s.levels.len()),
+        let levels = match stat("levels") {
+            Some(vtz::StatValue::Counts(l)) => l.len(),
+            _ => 0,
+        };
+        let what = match sites {
+            Some(n) => format!("{what}, {n} sites in {levels} levels"),
             None => format!("{what}, {}", report.method.name()),
         };
         ui.say(format!(

@@ -19,21 +19,22 @@ pub struct Args {
 
 pub fn run(a: Args, _ui: &Ui) -> Result<()> {
     let bytes = common::read_file(&a.input)?;
-    let info = vtz::info(&bytes, Limits::default()).map_err(|e| e.context(a.input.display()))?;
-    let h = &info.header;
+    let mut dec = vtz::Decoder::with_limits(std::io::Cursor::new(bytes), Limits::default())
+        .map_err(|e| e.context(a.input.display()))?;
+    let info = dec.info().clone();
+    let h = &info;
     let samples = h.samples() as usize;
     let bps = vtz::metrics::bits_per_sample(info.file_bytes, samples);
     let sections: Vec<_> = info
         .sections
         .iter()
-        .enumerate()
-        .map(|(i, e)| {
+        .map(|e| {
             serde_json::json!({
-                "index": i, "type": e.kind.name(), "code": e.kind.code(),
-                "required": e.flags & vtz::container::SF_REQUIRED != 0,
-                "primary": i == h.primary as usize,
-                "offset": e.offset, "bytes": e.length,
-                "bits_per_sample": vtz::metrics::bits_per_sample(e.length, samples),
+                "index": e.index, "type": e.name, "code": e.code,
+                "required": e.required,
+                "primary": e.primary,
+                "offset": e.offset, "bytes": e.bytes,
+                "bits_per_sample": vtz::metrics::bits_per_sample(e.bytes, samples),
             })
         })
         .collect();
@@ -44,50 +45,41 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
             "epsg": g.epsg, "wkt": g.wkt, "geotiff_keys": g.geokeys.is_some(),
         })
     });
-    let stats = if a.stats {
-        match vtz::sites_section(&bytes, Limits::default()) {
-            Ok((hd, mask, payload)) => Some(vtz::sites::stats(&payload, &hd, mask.as_deref())?),
-            Err(vtz::Error::InvalidArgument { .. }) => None,
-            Err(e) => return Err(e),
-        }
-    } else {
-        None
-    };
-    // FIS and Haar parameters, when the file has those sections.
-    let fis =
-        match vtz::section_payload(&bytes, vtz::container::SectionKind::Fis, Limits::default())? {
-            Some((hd, p)) if a.stats => Some(vtz::fis::describe(&p, &hd)?),
-            _ => None,
-        };
-    let haar =
-        match vtz::section_payload(&bytes, vtz::container::SectionKind::Haar, Limits::default())? {
-            Some((_, p)) if a.stats => Some(vtz::haar::describe(&p)?),
-            _ => None,
-        };
-    let range = h.range.map_or(0.0, |(lo, hi)| hi - lo);
-    let pct = |v: f64| if range > 0.0 { 100.0 * v / range } else { 0.0 };
-    let stats_json = stats.as_ref().map(|s| {
-        serde_json::json!({
-            "sites": s.sites, "hull": s.hull, "levels": s.levels,
-            "position_bits_per_site": s.position_bits / s.sites.max(1) as f64,
-            "height_bits_per_site": s.height_bits / s.sites.max(1) as f64,
-            "max_error": s.max_error, "max_error_pct": pct(s.max_error),
-            "rmse": s.rmse, "rmse_pct": pct(s.rmse),
-        })
-    });
+    let stats = if a.stats { dec.stats()? } else { Vec::new() };
     if a.json {
-        let j = serde_json::json!({
-            "stats": stats_json,
-            "fis": fis.map(|(k, points, s0, iterations)| serde_json::json!({
-                "k": k, "points": points, "s0": s0, "iterations": iterations })),
-            "haar": haar.map(|(levels, lattice_step)| serde_json::json!({
-                "levels": levels, "lattice_step": lattice_step })),
+        let mut j = serde_json::json!({
             "file": a.input, "bytes": info.file_bytes, "width": h.width, "height": h.height,
             "samples": samples, "sample_type": h.sample_type.name(),
             "value_scale": h.mapping.scale, "value_offset": h.mapping.offset,
             "nodata": h.nodata, "min": h.range.map(|r| r.0), "max": h.range.map(|r| r.1),
             "bits_per_sample": bps, "georef": georef, "sections": sections,
         });
+        // One object per method with a section (grid has no statistics); the sibson
+        // statistics keep their first key, "stats".
+        for m in vtz::Method::all().filter(|m| m.has_stats()) {
+            let key = if m == vtz::Method::SIBSON {
+                "stats"
+            } else {
+                m.name()
+            };
+            j[key] = serde_json::Value::Null;
+        }
+        for st in &stats {
+            if st.values.is_empty() {
+                continue;
+            }
+            let key = if st.method == vtz::Method::SIBSON {
+                "stats"
+            } else {
+                st.method.name()
+            };
+            let obj: serde_json::Map<String, serde_json::Value> = st
+                .values
+                .iter()
+                .map(|(k, v)| (k.to_string(), common::stat_json(v.clone())))
+                .collect();
+            j[key] = serde_json::Value::Object(obj);
+        }
         println!("{}", serde_json::to_string_pretty(&j).unwrap_or_default());
         return Ok(());
     }
@@ -139,53 +131,21 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
         }
         None => println!("georef        none"),
     }
-    if let Some(s) = &stats {
-        let n = s.sites.max(1) as f64;
-        println!(
-            "sites         {} in {} levels {:?}",
-            s.sites,
-            s.levels.len(),
-            s.levels
-        );
-        println!(
-            "bits/site     {:.2} positions + {:.2} heights = {:.2}",
-            s.position_bits / n,
-            s.height_bits / n,
-            (s.position_bits + s.height_bits) / n
-        );
-        println!(
-            "achieved      max error {} ({:.4} % of range), rmse {:.4} ({:.4} %)",
-            s.max_error,
-            pct(s.max_error),
-            s.rmse,
-            pct(s.rmse)
-        );
-    }
-    if let Some((k, points, s0, iters)) = fis {
-        println!(
-            "fis           spacing k = {k}: {points} interpolation points, s0 {s0}, {iters} iterations"
-        );
-    }
-    if let Some((levels, step)) = haar {
-        println!("haar          {levels} levels, value lattice step {step}");
+    for st in &stats {
+        for line in &st.lines {
+            println!("{line}");
+        }
     }
     println!("sections      {}", info.sections.len());
-    for (i, e) in info.sections.iter().enumerate() {
+    for e in &info.sections {
         println!(
-            "  [{i}] {:<9} {:>10} bytes {:>8.4} bits/sample{}{}",
-            e.kind.name(),
-            e.length,
-            vtz::metrics::bits_per_sample(e.length, samples),
-            if i == h.primary as usize {
-                "  primary"
-            } else {
-                ""
-            },
-            if e.flags & vtz::container::SF_REQUIRED != 0 {
-                "  required"
-            } else {
-                ""
-            }
+            "  [{}] {:<9} {:>10} bytes {:>8.4} bits/sample{}{}",
+            e.index,
+            e.name,
+            e.bytes,
+            vtz::metrics::bits_per_sample(e.bytes, samples),
+            if e.primary { "  primary" } else { "" },
+            if e.required { "  required" } else { "" }
         );
     }
     Ok(())

@@ -7,14 +7,28 @@
 //! and the command fails.
 
 use crate::common::{self, RasterOpts, Ui};
-#[path = "plot.rs"]
-mod plot;
 use serde::Serialize;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use vtz::viz::plot;
 use vtz::{EncodeOptions, Error, ErrorBound, Method, Result};
+
+/// A method to measure: one of the registry's, or `None` for `best`.
+type Spec = Option<Method>;
+
+fn spec_name(m: Spec) -> &'static str {
+    m.map_or("best", |m| m.name())
+}
+
+fn parse_spec(s: &str) -> Result<Spec> {
+    if s.trim().eq_ignore_ascii_case("best") {
+        Ok(None)
+    } else {
+        Method::parse(s.trim()).map(Some)
+    }
+}
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -156,7 +170,7 @@ fn one_line(e: &Error) -> String {
 }
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
-    let methods = parse_list(&a.methods, "methods", Method::parse)?;
+    let methods = parse_list(&a.methods, "methods", parse_spec)?;
     let bounds = parse_list(&a.bounds, "bounds", ErrorBound::parse)?;
     if !(a.tolerance >= 0.0 && a.tolerance.is_finite()) {
         return Err(Error::invalid(format!(
@@ -217,7 +231,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
                     .map(|m| {
                         let pts = rows[first..]
                             .iter()
-                            .filter(|r| r.method == m.name())
+                            .filter(|r| r.method == spec_name(*m))
                             .filter_map(|r| {
                                 Some(plot::Point {
                                     bps: r.bps?,
@@ -226,7 +240,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
                                 })
                             })
                             .collect();
-                        (m.name().to_string(), pts)
+                        (spec_name(*m).to_string(), pts)
                     })
                     .collect(),
                 bounds_pct: bounds
@@ -243,11 +257,11 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
 
     let table = markdown(&rows);
     if let Some(p) = &a.csv {
-        vtz::fsio::write_file(p, csv(&rows).into_bytes(), a.force)?;
+        vtz::formats::write_file(p, csv(&rows).into_bytes(), a.force)?;
         ui.say(format!("{}: {} rows", p.display(), rows.len()));
     }
     if let Some(p) = &a.md {
-        vtz::fsio::write_file(p, table.clone().into_bytes(), a.force)?;
+        vtz::formats::write_file(p, table.clone().into_bytes(), a.force)?;
         ui.say(format!("{}: Markdown table", p.display()));
     }
     if let Some(p) = &a.png {
@@ -257,12 +271,12 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             if plots.len() == 1 { "" } else { "s" },
             methods
                 .iter()
-                .map(|m| m.name())
+                .map(|m| spec_name(*m))
                 .collect::<Vec<_>>()
                 .join(", ")
         );
         let png = ui.busy("drawing", || plot::rd_png(&plots, &title))?;
-        vtz::fsio::write_file(p, png, a.force)?;
+        vtz::formats::write_file(p, png, a.force)?;
         ui.say(format!("{}: plot", p.display()));
     }
 
@@ -353,7 +367,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
 fn measure(
     raster: &vtz::Raster,
     name: &str,
-    m: Method,
+    m: Spec,
     b: ErrorBound,
     span: f64,
     progress: &mut dyn FnMut(f64),
@@ -361,7 +375,7 @@ fn measure(
     let bound_abs = b.absolute(raster.valid_range());
     let mut row = Row {
         file: name.to_string(),
-        method: m.name().to_string(),
+        method: spec_name(m).to_string(),
         bound: bound_label(b),
         bound_abs,
         samples: raster.len(),
@@ -379,11 +393,9 @@ fn measure(
         sites: None,
         note: String::new(),
     };
-    let opts = EncodeOptions {
-        max_error: Some(b),
-        method: m,
-        ..Default::default()
-    };
+    let mut opts = EncodeOptions::default();
+    opts.max_error = Some(b);
+    opts.methods = m.into_iter().collect();
     let t0 = Instant::now();
     let (bytes, report) = match vtz::encode_progress(raster, &opts, progress) {
         Ok(v) => v,
@@ -399,7 +411,11 @@ fn measure(
     row.bps = Some(bps);
     row.ratio = Some(raster.sample_type.bits() as f64 / bps.max(f64::MIN_POSITIVE));
     row.written = Some(report.method.name().to_string());
-    row.sites = report.sites.as_ref().map(|s| s.sites);
+    row.sites = report
+        .stats
+        .as_ref()
+        .and_then(|s| s.count("sites"))
+        .map(|n| n as usize);
     let t1 = Instant::now();
     let back = match vtz::decode(&bytes) {
         Ok(r) => r,
@@ -437,7 +453,7 @@ fn measure(
     } else if let Some(s) = row.sites {
         row.note = format!("{s} sites");
     }
-    if m == Method::Best {
+    if m.is_none() {
         let w = format!("wrote {}", report.method.name());
         row.note = if row.note.is_empty() {
             w
@@ -603,9 +619,9 @@ fn read_baseline(path: &Path) -> Result<Baseline> {
     for (i, r) in it.enumerate() {
         let line = i + 2;
         let get = |c: usize| r.get(c).map(|s| s.trim()).unwrap_or("");
-        let method = Method::parse(get(cm))
+        let method = parse_spec(get(cm))
+            .map(spec_name)
             .map_err(|e| bad(format!("row {line}: {}", one_line(&e))))?
-            .name()
             .to_string();
         let bound = ErrorBound::parse(get(cb))
             .map(bound_label)

@@ -2,8 +2,7 @@
 
 use crate::common::{self, RasterOpts, Ui};
 use std::path::{Path, PathBuf};
-use vtz::container::Limits;
-use vtz::render::ShadeOptions;
+use vtz::viz::hillshade::ShadeOptions;
 use vtz::{Error, Result};
 
 #[derive(clap::Args)]
@@ -73,8 +72,10 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         sites,
         scale: a.scale,
     };
-    let png = ui.busy("rendering", || vtz::render::hillshade(&raster, &opts))?;
-    vtz::fsio::write_file(&a.output, png, a.force)?;
+    let png = ui.busy("rendering", || {
+        vtz::viz::hillshade::hillshade(&raster, &opts)
+    })?;
+    vtz::formats::write_file(&a.output, png, a.force)?;
     let mut msg = format!(
         "{}: {}x{} picture",
         a.output.display(),
@@ -91,12 +92,8 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
 /// The (column, row) of every site of a .vtz file's sites section.
 fn site_positions(path: &Path) -> Result<Vec<(usize, usize)>> {
     let bytes = common::read_file(path)?;
-    let (header, mask, payload) = vtz::sites_section(&bytes, Limits::default())
+    let sites = vtz::Decoder::new(std::io::Cursor::new(bytes))
+        .and_then(|mut d| d.sites())
         .map_err(|e| e.context("--sites needs a .vtz with a sites section"))?;
-    let d = vtz::sites::decode_sites(&payload, &header, mask.as_deref(), None, None)?;
-    let w = header.width as usize;
-    Ok(d.sites
-        .iter()
-        .map(|&(i, _)| (i as usize % w, i as usize / w))
-        .collect())
+    Ok(sites.iter().map(|s| (s.col, s.row)).collect())
 }

@@ -19,37 +19,35 @@ pub struct Args {
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let bytes = common::read_file(&a.input)?;
-    let (h, mask, payload) =
-        vtz::sites_section(&bytes, Limits::default()).map_err(|e| e.context(a.input.display()))?;
-    let d = vtz::sites::decode_sites(&payload, &h, mask.as_deref(), None, None)?;
-    let w = h.width as usize;
+    let mut dec = vtz::Decoder::with_limits(std::io::Cursor::new(bytes), Limits::default())
+        .map_err(|e| e.context(a.input.display()))?;
+    let georef = dec.info().georef.clone();
+    let sites = dec.sites().map_err(|e| e.context(a.input.display()))?;
     let mut csv = String::from("rank,level,col,row,x,y,height\n");
     let mut rank = 0usize;
-    for (level, &n) in d.levels.iter().enumerate() {
-        for &(idx, height) in &d.sites[rank..rank + n] {
-            let (col, row) = (idx as usize % w, idx as usize / w);
-            // Model coordinates of the sample (its centre for area rasters).
-            let (x, y) = match &h.georef {
-                Some(g) => {
-                    let half = if g.raster_type == vtz::RasterType::Area {
-                        0.5
-                    } else {
-                        0.0
-                    };
-                    (
-                        (g.origin[0] + (col as f64 + half) * g.pixel_size[0]).to_string(),
-                        (g.origin[1] - (row as f64 + half) * g.pixel_size[1]).to_string(),
-                    )
-                }
-                None => (col.to_string(), row.to_string()),
-            };
-            csv.push_str(&format!("{rank},{level},{col},{row},{x},{y},{height}\n"));
-            rank += 1;
-        }
+    for s in &sites {
+        let (level, col, row, height) = (s.level, s.col, s.row, s.height);
+        // Model coordinates of the sample (its centre for area rasters).
+        let (x, y) = match &georef {
+            Some(g) => {
+                let half = if g.raster_type == vtz::RasterType::Area {
+                    0.5
+                } else {
+                    0.0
+                };
+                (
+                    (g.origin[0] + (col as f64 + half) * g.pixel_size[0]).to_string(),
+                    (g.origin[1] - (row as f64 + half) * g.pixel_size[1]).to_string(),
+                )
+            }
+            None => (col.to_string(), row.to_string()),
+        };
+        csv.push_str(&format!("{rank},{level},{col},{row},{x},{y},{height}\n"));
+        rank += 1;
     }
     match &a.output {
         Some(p) => {
-            vtz::fsio::write_file(p, csv.into_bytes(), a.force)?;
+            vtz::formats::write_file(p, csv.into_bytes(), a.force)?;
             ui.say(format!("{}: {rank} sites", p.display()));
         }
         None => std::io::stdout()

@@ -1,0 +1,168 @@
+//! Decoding: open the container, pick the section, check every size the options derive
+//! against the limits, and run the section's method from the registry.
+
+use super::options::{DecodeOptions, Scale, SectionChoice};
+use crate::container::{ContainerReader, Header, Limits, SectionKind};
+use crate::error::{Error, Result};
+use crate::methods::{self, DecodeJob, Representation};
+use crate::model::{Raster, RasterType, Window};
+use std::io::{Read, Seek};
+
+/// The registry's names for the container (which knows no method).
+pub(crate) fn kind_names(k: SectionKind) -> Option<&'static str> {
+    methods::by_section(k).map(|m| m.section_name())
+}
+
+/// Open a container with the registry's section names.
+pub(crate) fn open<R: Read + Seek>(inner: R, limits: Limits) -> Result<ContainerReader<R>> {
+    ContainerReader::new(inner, limits, kind_names)
+}
+
+/// The directory index `choice` names in an opened file.
+pub(crate) fn section_index<R: Read + Seek>(
+    rd: &ContainerReader<R>,
+    choice: SectionChoice,
+) -> Result<usize> {
+    Ok(match choice {
+        SectionChoice::Primary => rd.header().primary as usize,
+        SectionChoice::Index(i) => i,
+        SectionChoice::Method(m) => rd
+            .find(m.0.section())
+            .ok_or_else(|| Error::invalid(format!("the file has no {} section", m.name())))?,
+    })
+}
+
+/// Check that `n` samples (a derived output size) are within the limits before anything
+/// of that size is allocated.
+pub(crate) fn check_output(
+    what: impl FnOnce() -> String,
+    n: Option<u64>,
+    limits: &Limits,
+) -> Result<()> {
+    match n {
+        Some(n) if n <= limits.max_samples => Ok(()),
+        Some(n) => Err(Error::limit(format!(
+            "{} = {n} samples, over the limit of {}",
+            what(),
+            limits.max_samples
+        ))),
+        None => Err(Error::limit(format!("{} overflows", what()))),
+    }
+}
+
+/// Decode an opened file with options into a raster.
+pub(crate) fn decode_reader<R: Read + Seek>(
+    rd: &mut ContainerReader<R>,
+    opts: &DecodeOptions,
+) -> Result<Raster> {
+    let header = rd.header().clone();
+    let mask = rd.read_mask()?;
+    let idx = section_index(rd, opts.section)?;
+    let entry = rd
+        .entries()
+        .get(idx)
+        .ok_or_else(|| Error::invalid(format!("the file has no section {idx}")))?
+        .clone();
+    let (w, h) = (header.width as usize, header.height as usize);
+    let win = opts.window.unwrap_or(Window::full(w, h));
+    if win.width == 0
+        || win.height == 0
+        || win.x.checked_add(win.width).is_none_or(|e| e > w)
+        || win.y.checked_add(win.height).is_none_or(|e| e > h)
+    {
+        return Err(Error::invalid(format!(
+            "window {},{},{},{} is not inside the {w}x{h} raster",
+            win.x, win.y, win.width, win.height
+        )));
+    }
+    let Some(method) = methods::by_section(entry.kind) else {
+        return Err(Error::unsupported(format!(
+            "decoding a {} section is not implemented by this version",
+            entry.name
+        )));
+    };
+    if !method.progressive() && (opts.sites.is_some() || opts.levels.is_some()) {
+        return Err(Error::invalid(format!(
+            "--sites and --level need a sites section (this one is {})",
+            method.name()
+        )));
+    }
+    if let Some(s) = opts.scale {
+        if opts.window.is_some() {
+            return Err(Error::invalid("--scale and --window cannot be combined"));
+        }
+        let (ow, oh) = scaled_size(w, h, s);
+        check_output(
+            || format!("a --scale of {}/{} makes a {ow}x{oh} raster", s.num, s.den),
+            ow.checked_mul(oh),
+            rd.limits(),
+        )?;
+    }
+    let payload = rd.read_section(idx)?;
+    let job = DecodeJob {
+        payload: &payload,
+        header: &header,
+        mask: mask.as_deref(),
+        window: win,
+        sites: opts.sites,
+        levels: opts.levels,
+        threads: opts.threads,
+        base: None,
+    };
+    if let Some(s) = opts.scale {
+        return decode_scaled(method, &job, s);
+    }
+    let data = method.decode(&job)?;
+    let mut r = Raster {
+        width: win.width,
+        height: win.height,
+        data,
+        mask: mask.map(|m| methods::crop(&m, w, win)),
+        nodata: header.nodata,
+        sample_type: header.sample_type,
+        mapping: header.mapping,
+        georef: header.georef.as_ref().map(|g| g.window(win.x, win.y)),
+    };
+    r.normalize_mask();
+    Ok(r)
+}
+
+/// The size of a `w × h` grid resampled by `s` (sample (i, j) sits at source position
+/// (i·den/num, j·den/num), both ends included).
+fn scaled_size(w: usize, h: usize, s: Scale) -> (u64, u64) {
+    let f = |n: usize| (n as u64 - 1) * s.num.max(1) as u64 / s.den.max(1) as u64 + 1;
+    (f(w), f(h))
+}
+
+fn decode_scaled(m: &dyn Representation, job: &DecodeJob, s: Scale) -> Result<Raster> {
+    let header: &Header = job.header;
+    let (data, mask, ow, oh) = m.decode_scaled(job, s.num, s.den)?;
+    let f = s.den as f64 / s.num as f64;
+    let georef = header.georef.as_ref().map(|g| {
+        let mut g = g.clone();
+        if g.raster_type == RasterType::Area {
+            g.origin[0] += 0.5 * g.pixel_size[0] * (1.0 - f);
+            g.origin[1] -= 0.5 * g.pixel_size[1] * (1.0 - f);
+        }
+        g.pixel_size = [g.pixel_size[0] * f, g.pixel_size[1] * f];
+        g
+    });
+    let mut r = Raster {
+        width: ow,
+        height: oh,
+        data,
+        mask: Some(mask),
+        nodata: header.nodata,
+        sample_type: header.sample_type,
+        mapping: header.mapping,
+        georef,
+    };
+    r.normalize_mask();
+    Ok(r)
+}
+
+#[cfg(feature = "internals")]
+/// Parse a whole file held in memory (every checksum verified), with the registry's names.
+pub fn read_all(bytes: &[u8], limits: Limits) -> Result<crate::container::Container> {
+    crate::container::read(bytes, limits, kind_names)
+}

@@ -1,0 +1,443 @@
+//! The codec facade: options, rate control and dispatch through the method registry, for
+//! encoding a raster into `.vtz` bytes and decoding them back; the public API re-exports
+//! what is here.
+
+mod decode;
+mod encode;
+mod options;
+mod rate;
+
+pub use encode::EncodeReport;
+pub use options::{DecodeOptions, EncodeOptions, Scale, SectionChoice};
+
+use crate::container::{ContainerReader, Limits, SF_REQUIRED, SectionKind};
+use crate::error::{Error, Result};
+use crate::formats::{self, Format, ReadOptions, WriteOptions};
+use crate::methods::{self, DecodeJob, Method, Site, Stats};
+use crate::model::{Georef, Raster, SampleType, ValueMapping, Window};
+use crate::quant::ErrorBound;
+use std::io::{Cursor, Read, Seek};
+use std::path::Path;
+
+#[cfg(feature = "internals")]
+pub use decode::read_all;
+
+/// Encode a raster into `.vtz` bytes.
+pub fn encode(raster: &Raster, opts: &EncodeOptions) -> Result<Vec<u8>> {
+    encode_report(raster, opts).map(|(b, _)| b)
+}
+
+/// Encode a raster into `.vtz` bytes and report the bound achieved.
+pub fn encode_report(raster: &Raster, opts: &EncodeOptions) -> Result<(Vec<u8>, EncodeReport)> {
+    encode_progress(raster, opts, &mut |_| {})
+}
+
+/// [`encode_report`] with a progress callback (fraction done, 0..1).
+pub fn encode_progress(
+    raster: &Raster,
+    opts: &EncodeOptions,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(Vec<u8>, EncodeReport)> {
+    match opts.target_bytes {
+        Some(t) => rate::encode_to_size(raster, opts, t, progress),
+        None => encode::encode_once(raster, opts, progress),
+    }
+}
+
+/// Decode `.vtz` bytes into a raster (the primary section).
+pub fn decode(bytes: &[u8]) -> Result<Raster> {
+    decode_with(bytes, &DecodeOptions::default())
+}
+
+/// Decode `.vtz` bytes into a raster with options.
+pub fn decode_with(bytes: &[u8], opts: &DecodeOptions) -> Result<Raster> {
+    decode_from(Cursor::new(bytes), opts)
+}
+
+/// Decode a `.vtz` from a reader: only the header, the directory and the sections the
+/// decode needs are read.
+pub fn decode_from<R: Read + Seek>(reader: R, opts: &DecodeOptions) -> Result<Raster> {
+    let mut rd = decode::open(reader, opts.limits)?;
+    decode::decode_reader(&mut rd, opts)
+}
+
+/// Read a raster file of any format vtz knows, `.vtz` included (decoded).
+pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
+    let format = match opts.format {
+        Some(f) => f,
+        None => Format::from_path(path)?,
+    };
+    if format != Format::Vtz {
+        return formats::read_path(path, opts);
+    }
+    let ctx = path.display().to_string();
+    let file = std::fs::File::open(path).map_err(|e| Error::io(&ctx, e))?;
+    let limits = Limits {
+        max_samples: opts.max_samples(),
+        ..Limits::default()
+    };
+    let o = DecodeOptions {
+        limits,
+        ..Default::default()
+    };
+    let mut r = decode_from(std::io::BufReader::new(file), &o).map_err(|e| e.context(&ctx))?;
+    r.normalize_mask();
+    r.validate().map_err(|e| e.context(&ctx))?;
+    Ok(r)
+}
+
+/// Write a raster file of any format vtz knows (a `.vtz` is encoded losslessly), with its
+/// sidecars, atomically.
+pub fn write_path(raster: &Raster, path: &Path, opts: &WriteOptions) -> Result<()> {
+    let format = match opts.format {
+        Some(f) => f,
+        None => Format::from_path(path)?,
+    };
+    if format != Format::Vtz {
+        return formats::write_path(raster, path, opts);
+    }
+    let bytes = encode(raster, &EncodeOptions::default())?;
+    formats::write_file(path, bytes, opts.force)
+}
+
+/// Builds an encode: `Encoder::new().max_error(..).method(..).encode(&raster)`.
+///
+/// ```
+/// # let raster = vtz::Raster::from_values(3, 2, vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0], None, vtz::SampleType::F32)?;
+/// let (bytes, report) = vtz::Encoder::new()
+///     .max_error(vtz::ErrorBound::Abs(0.5))
+///     .method(vtz::Method::GRID)
+///     .encode_report(&raster)?;
+/// assert!(report.max_error <= 0.5);
+/// # Ok::<(), vtz::Error>(())
+/// ```
+#[derive(Clone, Debug, Default)]
+pub struct Encoder {
+    opts: EncodeOptions,
+}
+
+impl Encoder {
+    /// Lossless, best method.
+    pub fn new() -> Encoder {
+        Encoder::default()
+    }
+    /// Start from full options.
+    pub fn with_options(opts: EncodeOptions) -> Encoder {
+        Encoder { opts }
+    }
+    /// Guarantee every valid sample within this bound.
+    pub fn max_error(mut self, b: ErrorBound) -> Encoder {
+        self.opts.max_error = Some(b);
+        self
+    }
+    /// Write this method only (call again to add comparison sections).
+    pub fn method(mut self, m: Method) -> Encoder {
+        self.opts.methods.push(m);
+        self
+    }
+    /// Aim for a file of at most this many bytes.
+    pub fn target_bytes(mut self, n: u64) -> Encoder {
+        self.opts.target_bytes = Some(n);
+        self
+    }
+    /// Store this JSON in a metadata section.
+    pub fn metadata(mut self, json: impl Into<String>) -> Encoder {
+        self.opts.metadata = Some(json.into());
+        self
+    }
+    /// The options as built so far (to set per-method parameters).
+    pub fn options_mut(&mut self) -> &mut EncodeOptions {
+        &mut self.opts
+    }
+    /// Encode into `.vtz` bytes.
+    pub fn encode(&self, raster: &Raster) -> Result<Vec<u8>> {
+        encode(raster, &self.opts)
+    }
+    /// Encode into `.vtz` bytes with the report.
+    pub fn encode_report(&self, raster: &Raster) -> Result<(Vec<u8>, EncodeReport)> {
+        encode_report(raster, &self.opts)
+    }
+    /// Encode with a progress callback (fraction done, 0..1).
+    pub fn encode_progress(
+        &self,
+        raster: &Raster,
+        progress: &mut dyn FnMut(f64),
+    ) -> Result<(Vec<u8>, EncodeReport)> {
+        encode_progress(raster, &self.opts, progress)
+    }
+}
+
+/// What a file holds, read without decoding a sample (the header and the directory).
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct FileInfo {
+    pub file_bytes: u64,
+    pub width: u32,
+    pub height: u32,
+    pub sample_type: SampleType,
+    /// How stored integer codes map to values.
+    pub mapping: ValueMapping,
+    /// The nodata value the source declared.
+    pub nodata: Option<f64>,
+    /// The range (min, max) of the valid samples.
+    pub range: Option<(f64, f64)>,
+    pub georef: Option<Georef>,
+    /// The index of the primary section.
+    pub primary: usize,
+    pub sections: Vec<SectionInfo>,
+}
+
+impl FileInfo {
+    /// Samples in the raster.
+    pub fn samples(&self) -> u64 {
+        self.width as u64 * self.height as u64
+    }
+}
+
+/// One entry of the section directory.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct SectionInfo {
+    pub index: usize,
+    /// The type's name: a method's, `mask`, `metadata`, or `unknown-N`.
+    pub name: String,
+    /// The section type code (spec/FORMAT.md).
+    pub code: u16,
+    /// The method that wrote it, for representation sections this build knows.
+    pub method: Option<Method>,
+    pub required: bool,
+    pub primary: bool,
+    pub offset: u64,
+    pub bytes: u64,
+}
+
+/// Reads a `.vtz` lazily: [`Decoder::new`] reads the header and the directory (like LERC's
+/// blob info), then each call reads only the sections it needs.
+///
+/// ```
+/// # let raster = vtz::Raster::from_values(3, 2, vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0], None, vtz::SampleType::I16)?;
+/// # let bytes = vtz::encode(&raster, &Default::default())?;
+/// let mut dec = vtz::Decoder::new(std::io::Cursor::new(bytes))?;
+/// assert_eq!((dec.info().width, dec.info().height), (3, 2));
+/// let mut buf = [0i16; 2];
+/// dec.window(vtz::Window { x: 1, y: 1, width: 2, height: 1 })
+///     .decode_into(&mut buf)?;
+/// assert_eq!(buf, [5, 6]);
+/// # Ok::<(), vtz::Error>(())
+/// ```
+pub struct Decoder<R> {
+    rd: ContainerReader<R>,
+    info: FileInfo,
+    opts: DecodeOptions,
+}
+
+impl<R: Read + Seek> Decoder<R> {
+    /// Open with the default [`Limits`].
+    pub fn new(reader: R) -> Result<Decoder<R>> {
+        Decoder::with_limits(reader, Limits::default())
+    }
+
+    /// Open with explicit limits on everything the file (or an option) would allocate.
+    pub fn with_limits(mut reader: R, limits: Limits) -> Result<Decoder<R>> {
+        let file_bytes = reader
+            .seek(std::io::SeekFrom::End(0))
+            .map_err(|e| Error::io("seeking", e))?;
+        reader
+            .seek(std::io::SeekFrom::Start(0))
+            .map_err(|e| Error::io("seeking", e))?;
+        let rd = decode::open(reader, limits)?;
+        let h = rd.header().clone();
+        let sections = rd
+            .entries()
+            .iter()
+            .enumerate()
+            .map(|(i, e)| SectionInfo {
+                index: i,
+                name: e.name.clone(),
+                code: e.kind.code(),
+                method: methods::by_section(e.kind).map(Method),
+                required: e.flags & SF_REQUIRED != 0,
+                primary: i == h.primary as usize,
+                offset: e.offset,
+                bytes: e.length,
+            })
+            .collect();
+        let info = FileInfo {
+            file_bytes,
+            width: h.width,
+            height: h.height,
+            sample_type: h.sample_type,
+            mapping: h.mapping,
+            nodata: h.nodata,
+            range: h.range,
+            georef: h.georef.clone(),
+            primary: h.primary as usize,
+            sections,
+        };
+        let opts = DecodeOptions {
+            limits,
+            ..Default::default()
+        };
+        Ok(Decoder { rd, info, opts })
+    }
+
+    /// What the file holds.
+    pub fn info(&self) -> &FileInfo {
+        &self.info
+    }
+
+    /// Decode only this window from now on.
+    pub fn window(&mut self, w: Window) -> &mut Self {
+        self.opts.window = Some(w);
+        self
+    }
+
+    /// Decode this section instead of the primary one.
+    pub fn section(&mut self, s: SectionChoice) -> &mut Self {
+        self.opts.section = s;
+        self
+    }
+
+    /// Replace the decode options (the limits given at opening stay).
+    pub fn options(&mut self, opts: DecodeOptions) -> &mut Self {
+        let limits = self.opts.limits;
+        self.opts = DecodeOptions { limits, ..opts };
+        self
+    }
+
+    /// Decode into a raster.
+    pub fn decode(&mut self) -> Result<Raster> {
+        decode::decode_reader(&mut self.rd, &self.opts)
+    }
+
+    /// Decode into the caller's buffer of the file's sample type (or a wider one): one
+    /// value per sample of the window, row-major. Nodata samples get the declared nodata
+    /// value (NaN for floats without one). A value the buffer's type cannot hold is an error,
+    /// never a silent change.
+    pub fn decode_into<T: Sample>(&mut self, out: &mut [T]) -> Result<()> {
+        let r = self.decode()?;
+        if out.len() != r.data.len() {
+            return Err(Error::invalid(format!(
+                "the buffer holds {} samples, the decode has {}",
+                out.len(),
+                r.data.len()
+            )));
+        }
+        for (o, &v) in out.iter_mut().zip(&r.data) {
+            *o = T::from_f64(v).ok_or_else(|| {
+                Error::invalid(format!(
+                    "the value {v} does not fit the buffer's type {}",
+                    T::NAME
+                ))
+            })?;
+        }
+        Ok(())
+    }
+
+    /// The statistics each method keeps of its sections: for every method with a section
+    /// in the file, its first section (the primary one where it is that method's).
+    pub fn stats(&mut self) -> Result<Vec<Stats>> {
+        let mut out = Vec::new();
+        for m in methods::REGISTRY {
+            if let Some(s) = self.with_section(*m, |job| m.describe(job))? {
+                out.extend(s);
+            }
+        }
+        Ok(out)
+    }
+
+    /// The stored sites of the file's sites section (the primary one when it is one),
+    /// in importance order.
+    pub fn sites(&mut self) -> Result<Vec<Site>> {
+        for m in methods::REGISTRY {
+            if let Some(Some(s)) = self.with_section(*m, |job| m.sites(job))? {
+                return Ok(s);
+            }
+        }
+        Err(Error::invalid("the file has no sites section"))
+    }
+
+    /// Run `f` on the whole-raster decode job of method `m`'s section (the primary one
+    /// when it is `m`'s, else the first); `None` when the file has no such section.
+    fn with_section<T>(
+        &mut self,
+        m: &dyn methods::Representation,
+        f: impl FnOnce(&DecodeJob) -> Result<T>,
+    ) -> Result<Option<T>> {
+        let header = self.rd.header().clone();
+        let primary = header.primary as usize;
+        let idx = match self.rd.entries().get(primary) {
+            Some(e) if e.kind == m.section() => Some(primary),
+            _ => self.rd.find(m.section()),
+        };
+        let Some(i) = idx else { return Ok(None) };
+        let mask = self.rd.read_mask()?;
+        let payload = self.rd.read_section(i)?;
+        let job = DecodeJob {
+            payload: &payload,
+            header: &header,
+            mask: mask.as_deref(),
+            window: Window::full(header.width as usize, header.height as usize),
+            sites: None,
+            levels: None,
+            threads: 1,
+            base: None,
+        };
+        f(&job).map(Some)
+    }
+
+    /// The payload of the first section of `kind`, checksum verified (`None` when absent).
+    #[doc(hidden)]
+    pub fn section_payload(&mut self, kind: SectionKind) -> Result<Option<Vec<u8>>> {
+        match self.rd.find(kind) {
+            Some(i) => self.rd.read_section(i).map(Some),
+            None => Ok(None),
+        }
+    }
+}
+
+/// Read a file's header and directory without decoding samples.
+pub fn info(bytes: &[u8], limits: Limits) -> Result<FileInfo> {
+    Decoder::with_limits(Cursor::new(bytes), limits).map(|d| d.info)
+}
+
+/// A sample type a caller's buffer can have ([`Decoder::decode_into`]). Sealed.
+pub trait Sample: Copy + sealed::Sealed {
+    #[doc(hidden)]
+    const NAME: &'static str;
+    #[doc(hidden)]
+    fn from_f64(v: f64) -> Option<Self>;
+}
+
+mod sealed {
+    pub trait Sealed {}
+}
+
+macro_rules! int_sample {
+    ($($t:ty),*) => {$(
+        impl sealed::Sealed for $t {}
+        impl Sample for $t {
+            const NAME: &'static str = stringify!($t);
+            fn from_f64(v: f64) -> Option<Self> {
+                (v.fract() == 0.0 && v >= <$t>::MIN as f64 && v <= <$t>::MAX as f64)
+                    .then_some(v as $t)
+            }
+        }
+    )*};
+}
+int_sample!(u8, i16, u16, i32);
+
+impl sealed::Sealed for f32 {}
+impl Sample for f32 {
+    const NAME: &'static str = "f32";
+    fn from_f64(v: f64) -> Option<Self> {
+        (v.is_nan() || v as f32 as f64 == v).then_some(v as f32)
+    }
+}
+impl sealed::Sealed for f64 {}
+impl Sample for f64 {
+    const NAME: &'static str = "f64";
+    fn from_f64(v: f64) -> Option<Self> {
+        Some(v)
+    }
+}

@@ -1,0 +1,259 @@
+//! SRTM `.hgt` tiles: square grids of big-endian i16, -32768 = void, georeferenced by file name.
+//!
+//! A tile named like `N22W160.hgt` (the `[NS]dd[EW]ddd` pattern may appear anywhere in the
+//! name, in any case) covers the 1×1 degree cell whose south-west corner is (lon -160,
+//! lat 22); its posts are cell centres ([`RasterType::Point`]), row 0 at latitude 23, with
+//! spacing 1/(N-1) degrees on WGS84 (EPSG:4326).
+
+use crate::error::{Error, Result};
+use crate::formats::ReadOptions;
+use crate::model::{Georef, Raster, RasterType, SampleType, check_size};
+
+/// The void marker of SRTM tiles.
+pub const VOID: i16 = i16::MIN;
+
+/// Largest grid side accepted (SRTM1 tiles are 3601).
+const MAX_SIDE: u64 = 10_000;
+
+/// The south-west corner (lon, lat) of the tile named by the first `[NS]dd[EW]ddd` pattern
+/// in `name` (case-insensitive, not part of a longer run of digits).
+pub fn tile_corner(name: &str) -> Option<(f64, f64)> {
+    let b = name.as_bytes();
+    let digits = |s: &[u8]| -> Option<u32> {
+        s.iter().try_fold(0u32, |acc, &c| {
+            c.is_ascii_digit().then(|| acc * 10 + (c - b'0') as u32)
+        })
+    };
+    for i in 0..b.len().saturating_sub(6) {
+        let ns = b[i].to_ascii_uppercase();
+        let ew = b[i + 3].to_ascii_uppercase();
+        if !matches!(ns, b'N' | b'S') || !matches!(ew, b'E' | b'W') {
+            continue;
+        }
+        if b.get(i + 7).is_some_and(u8::is_ascii_digit) {
+            continue;
+        }
+        let (Some(lat), Some(lon)) = (digits(&b[i + 1..i + 3]), digits(&b[i + 4..i + 7])) else {
+            continue;
+        };
+        if lat >= 90 || lon > 180 {
+            continue;
+        }
+        let lat = if ns == b'S' {
+            -(lat as f64)
+        } else {
+            lat as f64
+        };
+        let lon = if ew == b'W' {
+            -(lon as f64)
+        } else {
+            lon as f64
+        };
+        return Some((lon, lat));
+    }
+    None
+}
+
+/// Read an `.hgt` tile; `name` is the file name the georeferencing comes from.
+pub fn read(bytes: &[u8], name: &str, opts: &ReadOptions) -> Result<Raster> {
+    let len = bytes.len() as u64;
+    let samples = len / 2;
+    let side = samples.isqrt();
+    if len % 2 != 0 || side * side != samples || side < 2 {
+        return Err(Error::corrupt(format!(
+            "hgt file of {len} bytes is not 2·N² bytes for a square N×N grid with N ≥ 2"
+        )));
+    }
+    if side > MAX_SIDE {
+        return Err(Error::limit(format!(
+            "hgt grid of {side}x{side} is over the {MAX_SIDE}x{MAX_SIDE} limit"
+        )));
+    }
+    let n = check_size(side, side, opts.max_samples())?;
+    let side = side as usize;
+    let nodata = VOID as f64;
+    let mut data = Vec::with_capacity(n);
+    let mut mask: Option<Vec<bool>> = None;
+    for (i, c) in bytes.chunks_exact(2).enumerate() {
+        let v = i16::from_be_bytes([c[0], c[1]]);
+        if v == VOID {
+            mask.get_or_insert_with(|| vec![true; n])[i] = false;
+        }
+        data.push(v as f64);
+    }
+    let georef = tile_corner(name).map(|(lon, lat)| Georef {
+        origin: [lon, lat + 1.0],
+        pixel_size: [1.0 / (side - 1) as f64, 1.0 / (side - 1) as f64],
+        raster_type: RasterType::Point,
+        epsg: Some(4326),
+        wkt: None,
+        geokeys: None,
+    });
+    Ok(Raster {
+        width: side,
+        height: side,
+        data,
+        mask,
+        nodata: Some(nodata),
+        sample_type: SampleType::I16,
+        mapping: Default::default(),
+        georef,
+    })
+}
+
+/// Write a square raster as an `.hgt` tile (the georef is not stored: the file name carries
+/// it). Values are rounded to the nearest integer and must fit i16 without being -32768;
+/// invalid samples become -32768.
+pub fn write(r: &Raster) -> Result<Vec<u8>> {
+    if r.width != r.height || r.width < 2 {
+        return Err(Error::invalid(format!(
+            "an .hgt tile must be a square grid of at least 2x2, this raster is {}x{}",
+            r.width, r.height
+        )));
+    }
+    if r.width as u64 > MAX_SIDE {
+        return Err(Error::invalid(format!(
+            "an .hgt tile can be at most {MAX_SIDE}x{MAX_SIDE}, this raster is {}x{}",
+            r.width, r.height
+        )));
+    }
+    let mut out = Vec::with_capacity(r.len() * 2);
+    for (i, &v) in r.data.iter().enumerate() {
+        let code = if r.is_valid(i) {
+            let q = v.round();
+            if !(q > VOID as f64 && q <= i16::MAX as f64) {
+                return Err(Error::invalid(format!(
+                    "sample {i} (row {}, col {}) = {v} does not fit an .hgt int16 (-32767..=32767; -32768 marks voids)",
+                    i / r.width,
+                    i % r.width
+                )));
+            }
+            q as i16
+        } else {
+            VOID
+        };
+        out.extend_from_slice(&code.to_be_bytes());
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testutil::*;
+
+    fn opts() -> ReadOptions {
+        ReadOptions::default()
+    }
+
+    #[test]
+    fn tile_names() {
+        assert_eq!(tile_corner("N22W160.hgt"), Some((-160.0, 22.0)));
+        assert_eq!(tile_corner("srtm3_N22W160_kauai.hgt"), Some((-160.0, 22.0)));
+        assert_eq!(tile_corner("s01e010.HGT"), Some((10.0, -1.0)));
+        assert_eq!(tile_corner("N37E051.SRTMGL1.hgt"), Some((51.0, 37.0)));
+        assert_eq!(tile_corner("n45e0134.hgt"), None);
+        assert_eq!(tile_corner("N95E010.hgt"), None);
+        assert_eq!(tile_corner("tile.hgt"), None);
+        assert_eq!(tile_corner(""), None);
+        assert_eq!(tile_corner("ñN22W160ü.hgt"), Some((-160.0, 22.0)));
+    }
+
+    fn small_tile() -> Vec<u8> {
+        let vals: [i16; 9] = [1, -5, VOID, 300, 32767, -32767, 0, 7, 8];
+        vals.iter().flat_map(|v| v.to_be_bytes()).collect()
+    }
+
+    #[test]
+    fn small_roundtrip_and_georef() {
+        let b = small_tile();
+        let r = read(&b, "S01E010.hgt", &opts()).unwrap();
+        assert_eq!((r.width, r.height), (3, 3));
+        assert_eq!(r.sample_type, SampleType::I16);
+        assert_eq!(r.nodata, Some(-32768.0));
+        assert!(!r.is_valid(2));
+        assert_eq!(r.data[2], -32768.0);
+        assert_eq!(r.data[5], -32767.0);
+        let g = r.georef.clone().unwrap();
+        assert_eq!(g.origin, [10.0, 0.0]);
+        assert_eq!(g.pixel_size, [0.5, 0.5]);
+        assert_eq!(g.raster_type, RasterType::Point);
+        assert_eq!(g.epsg, Some(4326));
+        assert_eq!(write(&r).unwrap(), b);
+        assert!(read(&b, "tile.hgt", &opts()).unwrap().georef.is_none());
+    }
+
+    #[test]
+    fn write_checks() {
+        let r = Raster::from_values(2, 1, vec![1.0, 2.0], None, SampleType::I16).unwrap();
+        assert!(matches!(write(&r), Err(Error::InvalidArgument { .. })));
+        let r =
+            Raster::from_values(2, 2, vec![1.0, 2.0, 3.0, 40000.0], None, SampleType::I32).unwrap();
+        assert!(matches!(write(&r), Err(Error::InvalidArgument { .. })));
+        let r = Raster::from_values(2, 2, vec![1.0, 2.0, 3.0, -32768.2], None, SampleType::F32)
+            .unwrap();
+        assert!(matches!(write(&r), Err(Error::InvalidArgument { .. })));
+        // Rounding to nearest; NaN voids and another declared nodata become -32768.
+        let r = Raster::from_values(
+            2,
+            2,
+            vec![1.4, -2.6, f64::NAN, -9999.0],
+            Some(-9999.0),
+            SampleType::F32,
+        )
+        .unwrap();
+        let b = write(&r).unwrap();
+        let back: Vec<i16> = b
+            .chunks_exact(2)
+            .map(|c| i16::from_be_bytes([c[0], c[1]]))
+            .collect();
+        assert_eq!(back, [1, -3, VOID, VOID]);
+    }
+
+    #[test]
+    fn garbage_and_limits() {
+        let b = small_tile();
+        for cut in 0..b.len() {
+            // Every truncation fails except the one that is itself a square tile (2x2).
+            let res = read(&b[..cut], "N00E000.hgt", &opts());
+            assert_eq!(res.is_ok(), cut == 8, "cut {cut}");
+        }
+        let mut rng = Rng(7);
+        for len in [1usize, 3, 5, 7, 10, 99, 1001] {
+            assert!(read(&rng.bytes(len), "x.hgt", &opts()).is_err());
+        }
+        // A valid-sized tile over the sample limit.
+        let o = ReadOptions {
+            max_samples: Some(8),
+            ..Default::default()
+        };
+        assert!(matches!(
+            read(&b, "x.hgt", &o),
+            Err(Error::LimitExceeded { .. })
+        ));
+    }
+
+    #[test]
+    fn corpus_tiles() {
+        let Some(dir) = corpus() else { return };
+        for name in [
+            "srtm3_N22W160_kauai",
+            "srtm3_N00E010_gabon",
+            "srtm3_N44W072_white_mountains",
+            "srtm3_N57E011_kattegat",
+        ] {
+            let file = format!("{name}.hgt");
+            let bytes = std::fs::read(dir.join(&file)).unwrap();
+            let r = read(&bytes, &file, &opts()).unwrap();
+            assert_eq!(raster_bits(&r), raw_bits(&dir, name), "{name}");
+            let raw = load_raw(&dir, name);
+            assert_eq!(r.mask, raw.mask, "{name}");
+            assert_eq!(r.georef, raw.georef, "{name}");
+            assert_eq!(r.nodata, raw.nodata);
+            assert_eq!(write(&r).unwrap(), bytes, "{name}: write differs");
+            if name.contains("kauai") {
+                assert!(r.valid_count() < r.len(), "kauai has voids");
+            }
+        }
+    }
+}

@@ -1,0 +1,221 @@
+//! Raster file formats: one file per format, each reading into a [`Raster`] and writing from
+//! one; sidecars and atomic output beside them. The `.vtz` container is not a format here:
+//! the codec reads and writes it (`vtz::read_path`).
+
+pub(crate) mod asc;
+pub(crate) mod exr;
+pub(crate) mod geotiff;
+pub(crate) mod hgt;
+mod output;
+pub(crate) mod png;
+pub(crate) mod raw;
+
+use crate::error::{Error, Result};
+use crate::model::{DEFAULT_MAX_SAMPLES, Raster, SampleType};
+pub use output::{OutputFile, write_file, write_files};
+pub use png::PngMapping;
+use std::path::Path;
+
+/// Raster file formats vtz reads and writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// GeoTIFF (`.tif`, `.tiff`).
+    GeoTiff,
+    /// 16-bit greyscale PNG with a value mapping; Mapbox Terrain-RGB PNGs are read too.
+    Png,
+    /// Mapbox Terrain-RGB PNG (height = -10000 + (R·65536 + G·256 + B)·0.1).
+    TerrainRgb,
+    /// OpenEXR, one f32 channel.
+    Exr,
+    /// SRTM `.hgt` (big-endian i16, -32768 = void, georef from the name).
+    Hgt,
+    /// ESRI ASCII grid (`.asc`).
+    Asc,
+    /// Raw little-endian f32 (`NAME.f32`) with a `NAME.json` sidecar.
+    RawF32,
+    /// The vtz container itself.
+    Vtz,
+}
+
+impl Format {
+    /// Format from a file extension (case-insensitive).
+    pub fn from_path(path: &Path) -> Result<Format> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase())
+            .unwrap_or_default();
+        Format::from_name(&ext).map_err(|_| {
+            Error::invalid(format!(
+                "cannot tell the format of {} from its extension '{ext}' (use --format; known: tif, png, terrain-rgb, exr, hgt, asc, f32, vtz)",
+                path.display()
+            ))
+        })
+    }
+
+    /// Format from a name or extension as given by `--format`.
+    pub fn from_name(name: &str) -> Result<Format> {
+        Ok(match name.to_ascii_lowercase().as_str() {
+            "tif" | "tiff" | "geotiff" | "gtiff" => Format::GeoTiff,
+            "png" | "png16" => Format::Png,
+            "terrain-rgb" | "terrainrgb" => Format::TerrainRgb,
+            "exr" => Format::Exr,
+            "hgt" => Format::Hgt,
+            "asc" | "ascii" => Format::Asc,
+            "f32" | "raw" => Format::RawF32,
+            "vtz" => Format::Vtz,
+            other => return Err(Error::invalid(format!("unknown raster format '{other}'"))),
+        })
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::GeoTiff => "GeoTIFF",
+            Format::Png => "PNG16",
+            Format::TerrainRgb => "Terrain-RGB PNG",
+            Format::Exr => "OpenEXR",
+            Format::Hgt => "SRTM hgt",
+            Format::Asc => "ESRI ASCII grid",
+            Format::RawF32 => "raw f32 + json",
+            Format::Vtz => "vtz",
+        }
+    }
+}
+
+/// Options for reading rasters.
+#[derive(Clone, Debug, Default)]
+pub struct ReadOptions {
+    /// Force a format instead of guessing from the extension.
+    pub format: Option<Format>,
+    /// Value mapping for 16-bit PNG input (overrides a sidecar).
+    pub png_mapping: Option<png::PngMapping>,
+    /// Upper bound on samples a reader may allocate (defaults to 2^28, as [`crate::Limits`]).
+    pub max_samples: Option<u64>,
+}
+
+impl ReadOptions {
+    pub fn max_samples(&self) -> u64 {
+        self.max_samples.unwrap_or(DEFAULT_MAX_SAMPLES)
+    }
+}
+
+/// Options for writing rasters.
+#[derive(Clone, Debug, Default)]
+pub struct WriteOptions {
+    /// Force a format instead of guessing from the extension.
+    pub format: Option<Format>,
+    /// Replace existing output files.
+    pub force: bool,
+    /// Value mapping for 16-bit PNG output (defaults to the raster's own mapping).
+    pub png_mapping: Option<png::PngMapping>,
+}
+
+/// Read a raster file, choosing the format by extension unless `opts.format` says.
+pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
+    let format = match opts.format {
+        Some(f) => f,
+        None => Format::from_path(path)?,
+    };
+    let ctx = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| Error::io(&ctx, e))?;
+    let r = match format {
+        Format::GeoTiff => geotiff::read(&bytes, opts),
+        Format::Png | Format::TerrainRgb => {
+            // The sidecar gives the mapping (unless the caller's overrides it) and the georef.
+            let sidecar = png::read_sidecar(path)?;
+            let mapping = match &opts.png_mapping {
+                Some(m) => Some(m.clone()),
+                None => sidecar.as_ref().map(|s| s.mapping.clone()),
+            };
+            png::read(&bytes, mapping.as_ref(), format == Format::TerrainRgb, opts).map(|mut r| {
+                r.georef = sidecar.and_then(|s| s.georef);
+                r
+            })
+        }
+        Format::Exr => exr::read(&bytes, opts),
+        Format::Hgt => {
+            let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+            hgt::read(&bytes, name, opts)
+        }
+        Format::Asc => asc::read(&bytes, opts),
+        Format::RawF32 => {
+            let json_path = path.with_extension("json");
+            let json = std::fs::read(&json_path)
+                .map_err(|e| Error::io(format!("sidecar {}", json_path.display()), e))?;
+            raw::read(&bytes, &json, opts)
+        }
+        // The codec reads the container (`crate::read_path`); formats never call the codec.
+        Format::Vtz => Err(not_here()),
+    };
+    let mut r = r.map_err(|e| e.context(&ctx))?;
+    r.normalize_mask();
+    r.validate().map_err(|e| e.context(&ctx))?;
+    Ok(r)
+}
+
+/// Encode a raster into the files `path` needs (the file itself plus any sidecar), without
+/// touching the file system.
+pub fn encode_path(raster: &Raster, path: &Path, opts: &WriteOptions) -> Result<Vec<OutputFile>> {
+    raster.validate()?;
+    let format = match opts.format {
+        Some(f) => f,
+        None => Format::from_path(path)?,
+    };
+    let one = |bytes: Vec<u8>| {
+        vec![OutputFile {
+            path: path.to_path_buf(),
+            bytes,
+        }]
+    };
+    Ok(match format {
+        Format::GeoTiff => one(geotiff::write(raster)?),
+        Format::Png | Format::TerrainRgb => {
+            // A raster read from Terrain-RGB keeps that encoding in a .png unless the caller
+            // asks for a 16-bit mapping.
+            let terrain_rgb = format == Format::TerrainRgb
+                || (opts.png_mapping.is_none()
+                    && raster.mapping == png::TERRAIN_RGB
+                    && raster.sample_type == SampleType::F32);
+            let (png, sidecar) = if terrain_rgb {
+                png::write_terrain_rgb(raster)?
+            } else {
+                png::write(raster, opts.png_mapping.as_ref())?
+            };
+            let mut v = one(png);
+            if let Some(s) = sidecar {
+                v.push(OutputFile {
+                    path: png::sidecar_path(path),
+                    bytes: s,
+                });
+            }
+            v
+        }
+        Format::Exr => one(exr::write(raster)?),
+        Format::Hgt => one(hgt::write(raster)?),
+        Format::Asc => one(asc::write(raster)?),
+        Format::RawF32 => {
+            let (f32s, json) = raw::write(raster)?;
+            vec![
+                OutputFile {
+                    path: path.to_path_buf(),
+                    bytes: f32s,
+                },
+                OutputFile {
+                    path: path.with_extension("json"),
+                    bytes: json,
+                },
+            ]
+        }
+        Format::Vtz => return Err(not_here()),
+    })
+}
+
+/// Write a raster file (and its sidecar), atomically: see [`output::write_files`].
+pub fn write_path(raster: &Raster, path: &Path, opts: &WriteOptions) -> Result<()> {
+    let files = encode_path(raster, path, opts)?;
+    output::write_files(&files, opts.force)
+}
+
+fn not_here() -> Error {
+    Error::unsupported("a .vtz file is read and written by the codec, not as a raster format")
+}

@@ -1,0 +1,775 @@
+//! Raw little-endian f32 rasters (`NAME.f32`) with a `NAME.json` sidecar: the corpus storage format.
+//!
+//! The `.f32` file holds `width × height` little-endian `f32` values, row-major, row 0 = north,
+//! no header. The json sidecar holds `width`, `height`, `source_dtype`, `nodata`, `dx`, `dy`
+//! and, when vtz wrote it, a `georef` object and an optional `value_mapping`
+//! (`{"scale": s, "offset": o}`). The georef object (shared with the PNG sidecar and the EXR
+//! `vtz_georef` attribute) is `{"origin": [x, y], "pixel_size": [dx, dy], "raster_type":
+//! "area"|"point", "epsg": n|null, "wkt": s|null, "geokeys": {"directory": [..], "doubles":
+//! [..], "ascii": s}|null}`. A float that serde_json would not read back bit for bit from
+//! a JSON number (rare: some 17-digit values; also NaN and infinities) is written as a
+//! string holding its shortest form, so the georef round-trips exactly.
+//! Corpus sidecars have no `georef` object; their georeferencing is rebuilt from the
+//! free-text `origin` and `units` fields where that text is unambiguous.
+
+use crate::error::{Error, Result};
+use crate::formats::ReadOptions;
+use crate::model::{GeoKeys, Georef, Raster, RasterType, SampleType, ValueMapping, check_size};
+use serde::de::{self, Visitor};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+use std::fmt;
+
+/// An `f64` that survives a JSON round trip bit for bit.
+///
+/// serde_json (without its `float_roundtrip` feature) may parse long decimals one ulp off, so
+/// a value is written as a JSON number only when serde_json reads that number back exactly;
+/// otherwise (and for NaN/±inf) it is written as a string in Rust's shortest round-trip form,
+/// which `str::parse` reads back exactly. Reading accepts either form.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct ExactF64(pub f64);
+
+fn json_number_roundtrips(v: f64) -> bool {
+    serde_json::to_string(&v)
+        .ok()
+        .and_then(|t| serde_json::from_str::<f64>(&t).ok())
+        .is_some_and(|b| b.to_bits() == v.to_bits())
+}
+
+impl Serialize for ExactF64 {
+    fn serialize<S: Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        let v = self.0;
+        if v.is_finite() && json_number_roundtrips(v) {
+            s.serialize_f64(v)
+        } else {
+            s.serialize_str(&format!("{v:?}"))
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for ExactF64 {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct V;
+        impl Visitor<'_> for V {
+            type Value = ExactF64;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a number or a string holding a number")
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> std::result::Result<ExactF64, E> {
+                Ok(ExactF64(v))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> std::result::Result<ExactF64, E> {
+                Ok(ExactF64(v as f64))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> std::result::Result<ExactF64, E> {
+                Ok(ExactF64(v as f64))
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> std::result::Result<ExactF64, E> {
+                v.trim()
+                    .parse::<f64>()
+                    .map(ExactF64)
+                    .map_err(|_| E::custom(format!("'{v}' is not a number")))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+/// Refuse json that is not an object before handing it to serde (which would also accept a
+/// bare array for a struct).
+pub(crate) fn expect_json_object(bytes: &[u8], what: &str) -> Result<()> {
+    let first = bytes.iter().copied().find(|b| !b.is_ascii_whitespace());
+    if first != Some(b'{') {
+        return Err(Error::corrupt(format!("{what}: not a JSON object")));
+    }
+    Ok(())
+}
+
+/// JSON form of [`RasterType`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub(crate) enum RasterTypeJson {
+    Area,
+    Point,
+}
+
+/// JSON form of [`GeoKeys`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub(crate) struct GeoKeysJson {
+    pub directory: Vec<u16>,
+    pub doubles: Vec<ExactF64>,
+    pub ascii: String,
+}
+
+/// JSON form of [`Georef`], shared by the raw and PNG sidecars. Converts both ways exactly:
+/// `{"origin": [x, y], "pixel_size": [dx, dy], "raster_type": "area"|"point",
+/// "epsg": n|null, "wkt": s|null, "geokeys": {"directory": [...], "doubles": [...],
+/// "ascii": s}|null}`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub(crate) struct GeorefJson {
+    pub origin: [ExactF64; 2],
+    pub pixel_size: [ExactF64; 2],
+    pub raster_type: RasterTypeJson,
+    #[serde(default)]
+    pub epsg: Option<u32>,
+    #[serde(default)]
+    pub wkt: Option<String>,
+    #[serde(default)]
+    pub geokeys: Option<GeoKeysJson>,
+}
+
+impl From<&Georef> for GeorefJson {
+    fn from(g: &Georef) -> Self {
+        GeorefJson {
+            origin: [ExactF64(g.origin[0]), ExactF64(g.origin[1])],
+            pixel_size: [ExactF64(g.pixel_size[0]), ExactF64(g.pixel_size[1])],
+            raster_type: match g.raster_type {
+                RasterType::Area => RasterTypeJson::Area,
+                RasterType::Point => RasterTypeJson::Point,
+            },
+            epsg: g.epsg,
+            wkt: g.wkt.clone(),
+            geokeys: g.geokeys.as_ref().map(|k| GeoKeysJson {
+                directory: k.directory.clone(),
+                doubles: k.doubles.iter().map(|&d| ExactF64(d)).collect(),
+                ascii: k.ascii.clone(),
+            }),
+        }
+    }
+}
+
+impl From<GeorefJson> for Georef {
+    fn from(g: GeorefJson) -> Self {
+        Georef {
+            origin: [g.origin[0].0, g.origin[1].0],
+            pixel_size: [g.pixel_size[0].0, g.pixel_size[1].0],
+            raster_type: match g.raster_type {
+                RasterTypeJson::Area => RasterType::Area,
+                RasterTypeJson::Point => RasterType::Point,
+            },
+            epsg: g.epsg,
+            wkt: g.wkt,
+            geokeys: g.geokeys.map(|k| GeoKeys {
+                directory: k.directory,
+                doubles: k.doubles.into_iter().map(|d| d.0).collect(),
+                ascii: k.ascii,
+            }),
+        }
+    }
+}
+
+/// JSON form of [`ValueMapping`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+struct MappingJson {
+    scale: ExactF64,
+    offset: ExactF64,
+}
+
+/// The sidecar fields the reader uses; everything else in a corpus sidecar is ignored.
+#[derive(Deserialize)]
+struct RawJsonIn {
+    #[serde(default)]
+    width: Option<serde_json::Value>,
+    #[serde(default)]
+    height: Option<serde_json::Value>,
+    #[serde(default)]
+    source_dtype: Option<serde_json::Value>,
+    #[serde(default)]
+    nodata: Option<ExactF64>,
+    #[serde(default)]
+    dx: Option<serde_json::Value>,
+    #[serde(default)]
+    dy: Option<serde_json::Value>,
+    #[serde(default)]
+    units: Option<serde_json::Value>,
+    #[serde(default)]
+    origin: Option<serde_json::Value>,
+    #[serde(default)]
+    georef: Option<GeorefJson>,
+    #[serde(default)]
+    value_mapping: Option<MappingJson>,
+}
+
+#[derive(Serialize)]
+struct RawJsonOut<'a> {
+    width: usize,
+    height: usize,
+    source_dtype: &'a str,
+    nodata: Option<ExactF64>,
+    dx: Option<ExactF64>,
+    dy: Option<ExactF64>,
+    row_order: &'a str,
+    georef: Option<GeorefJson>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    value_mapping: Option<MappingJson>,
+}
+
+/// Sample type from a free-text `source_dtype` ("int16 (big-endian, SRTM .hgt)", "uint16",
+/// "float32 (GeoTIFF, LZW)", vtz's own "i16", ...): the first word naming a type wins.
+/// Values are stored as f32, so float64 sources count as F32; unknown text means F32.
+pub(crate) fn sample_type_from_text(text: &str) -> SampleType {
+    for word in text
+        .split(|c: char| !c.is_ascii_alphanumeric())
+        .map(|w| w.to_ascii_lowercase())
+    {
+        let t = match word.as_str() {
+            "uint8" | "u8" | "byte" => SampleType::U8,
+            "int16" | "i16" => SampleType::I16,
+            "uint16" | "u16" => SampleType::U16,
+            "int32" | "i32" => SampleType::I32,
+            "float32" | "f32" | "float64" | "f64" | "double" | "float" => SampleType::F32,
+            _ => continue,
+        };
+        return t;
+    }
+    SampleType::F32
+}
+
+/// The number following `key` in `text` (lowercase), where `key` stands as a word of its own
+/// and is followed by spaces, `=` or `:`.
+fn number_after(text: &str, key: &str) -> Option<f64> {
+    let bytes = text.as_bytes();
+    let mut from = 0;
+    while let Some(pos) = text[from..].find(key) {
+        let start = from + pos;
+        let end = start + key.len();
+        from = start + 1;
+        if start > 0 && bytes[start - 1].is_ascii_alphanumeric() {
+            continue;
+        }
+        let rest = &text[end..];
+        let rest_trim = rest.trim_start_matches([' ', '=', ':', '\t']);
+        if rest_trim.len() == rest.len() && !key.ends_with('=') {
+            // "lon" directly followed by letters ("longitude") is not our key.
+            continue;
+        }
+        let num: String = rest_trim
+            .chars()
+            .take_while(|c| c.is_ascii_digit() || matches!(c, '-' | '+' | '.' | 'e'))
+            .collect();
+        let num = num.trim_end_matches(['.', 'e']);
+        if let Ok(v) = num.parse::<f64>() {
+            return Some(v);
+        }
+    }
+    None
+}
+
+/// EPSG code from a corpus `units` text: an explicit "EPSG:n", a UTM zone on WGS84, or
+/// geographic degrees (NAD83 → 4269, otherwise WGS84 → 4326).
+fn epsg_from_units(units: &str) -> Option<u32> {
+    let u = units.to_ascii_lowercase();
+    if let Some(p) = u.find("epsg:") {
+        let digits: String = u[p + 5..]
+            .chars()
+            .take_while(|c| c.is_ascii_digit())
+            .collect();
+        if let Ok(code) = digits.parse::<u32>() {
+            return Some(code);
+        }
+    }
+    if let Some(p) = u.find("utm zone ") {
+        let rest = &u[p + 9..];
+        let digits: String = rest.chars().take_while(|c| c.is_ascii_digit()).collect();
+        let zone: u32 = digits.parse().ok()?;
+        let hemi = rest[digits.len()..].chars().next();
+        if (1..=60).contains(&zone) && u.contains("wgs84") {
+            return match hemi {
+                Some('n') => Some(32600 + zone),
+                Some('s') => Some(32700 + zone),
+                _ => None,
+            };
+        }
+        return None;
+    }
+    if u.contains("degree") {
+        return Some(if u.contains("nad83") { 4269 } else { 4326 });
+    }
+    None
+}
+
+/// Georeferencing from a corpus sidecar's free text: `origin` says "upper-left corner
+/// lon X, lat Y" / "upper-left corner x=X, y=Y" (or "NW corner", "lower-left corner")
+/// for [`RasterType::Area`], or "cell centre of row 0, col 0 = lat Y, lon X" for
+/// [`RasterType::Point`]. Approximate origins ("approx") give no georef.
+fn georef_from_text(origin: &str, units: &str, dx: f64, dy: f64, height: usize) -> Option<Georef> {
+    if !(dx.is_finite() && dy.is_finite() && dx > 0.0 && dy > 0.0) {
+        return None;
+    }
+    let o = origin.to_ascii_lowercase();
+    if o.contains("approx") {
+        return None;
+    }
+    enum Kind {
+        UpperLeft,
+        LowerLeft,
+        Centre,
+    }
+    // The centre form mentions "NW corner" in its remarks, so it is tested first.
+    let kind =
+        if o.contains("cell centre of row 0, col 0") || o.contains("cell center of row 0, col 0") {
+            Kind::Centre
+        } else if o.contains("upper-left corner") || o.contains("nw corner") {
+            Kind::UpperLeft
+        } else if o.contains("lower-left corner") || o.contains("sw corner") {
+            Kind::LowerLeft
+        } else {
+            return None;
+        };
+    let x = number_after(&o, "lon").or_else(|| number_after(&o, "x="))?;
+    let y = number_after(&o, "lat").or_else(|| number_after(&o, "y="))?;
+    let (origin, raster_type) = match kind {
+        Kind::UpperLeft => ([x, y], RasterType::Area),
+        Kind::LowerLeft => ([x, y + height as f64 * dy], RasterType::Area),
+        Kind::Centre => ([x, y], RasterType::Point),
+    };
+    Some(Georef {
+        origin,
+        pixel_size: [dx, dy],
+        raster_type,
+        epsg: epsg_from_units(units),
+        wkt: None,
+        geokeys: None,
+    })
+}
+
+fn json_usize(v: &Option<serde_json::Value>, name: &str) -> Result<u64> {
+    v.as_ref().and_then(|v| v.as_u64()).ok_or_else(|| {
+        Error::corrupt(format!(
+            "raw sidecar json: '{name}' is missing or not a non-negative integer"
+        ))
+    })
+}
+
+fn json_f64(v: &Option<serde_json::Value>) -> Option<f64> {
+    v.as_ref().and_then(|v| v.as_f64())
+}
+
+fn json_text(v: &Option<serde_json::Value>) -> &str {
+    v.as_ref().and_then(|v| v.as_str()).unwrap_or("")
+}
+
+/// Read a raw f32 raster from the `.f32` bytes and its json sidecar.
+pub fn read(bytes: &[u8], json: &[u8], opts: &ReadOptions) -> Result<Raster> {
+    expect_json_object(json, "raw sidecar json")?;
+    let meta: RawJsonIn = serde_json::from_slice(json)
+        .map_err(|e| Error::corrupt(format!("raw sidecar json: {e}")))?;
+    let w = json_usize(&meta.width, "width")?;
+    let h = json_usize(&meta.height, "height")?;
+    let n = check_size(w, h, opts.max_samples())?;
+    let (width, height) = (w as usize, h as usize);
+    let expected = n as u64 * 4;
+    if bytes.len() as u64 != expected {
+        return Err(Error::corrupt(format!(
+            "raw f32 data has {} bytes, but {width}x{height} samples need {expected}",
+            bytes.len()
+        )));
+    }
+    let declared = sample_type_from_text(json_text(&meta.source_dtype));
+    let nodata32 = meta.nodata.map(|v| v.0 as f32);
+    if nodata32.is_some_and(f32::is_nan) {
+        return Err(Error::corrupt("raw sidecar json: nodata is NaN"));
+    }
+    let mut data = Vec::with_capacity(n);
+    // Range of the valid values, and whether they are all integers.
+    let (mut lo, mut hi, mut all_int) = (f64::INFINITY, f64::NEG_INFINITY, true);
+    for (i, c) in bytes.chunks_exact(4).enumerate() {
+        let v = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+        let is_nodata = nodata32.is_some_and(|nd| v == nd);
+        if !is_nodata && !v.is_nan() {
+            if v.is_infinite() {
+                return Err(Error::corrupt(format!(
+                    "raw f32 sample {i} (row {}, col {}) is infinite",
+                    i / width,
+                    i % width
+                )));
+            }
+            let d = v as f64;
+            lo = lo.min(d);
+            hi = hi.max(d);
+            all_int &= d.fract() == 0.0;
+        }
+        data.push(v as f64);
+    }
+    // An integer source_dtype may describe stored codes rather than the values (e.g. a
+    // uint16 PNG holding metres + 32768): keep it only when the values fit it, else take the
+    // smallest signed integer type that holds them, else f32.
+    let fits = |t: SampleType| {
+        t.int_range()
+            .is_none_or(|(a, b)| all_int && (lo > hi || (lo >= a && hi <= b)))
+    };
+    let sample_type = if !declared.is_integer() || fits(declared) {
+        declared
+    } else if fits(SampleType::I16) {
+        SampleType::I16
+    } else if fits(SampleType::I32) {
+        SampleType::I32
+    } else {
+        SampleType::F32
+    };
+    let nodata = nodata32.map(|v| v as f64);
+    let mut r = Raster::from_values(width, height, data, nodata, sample_type)?;
+    if let Some(m) = meta.value_mapping {
+        let (scale, offset) = (m.scale.0, m.offset.0);
+        if !(scale.is_finite() && scale != 0.0 && offset.is_finite()) {
+            return Err(Error::corrupt(format!(
+                "raw sidecar json: value_mapping scale {scale} / offset {offset} is not usable"
+            )));
+        }
+        r.mapping = ValueMapping { scale, offset };
+    }
+    r.georef = match meta.georef {
+        Some(g) => Some(g.into()),
+        None => match (json_f64(&meta.dx), json_f64(&meta.dy)) {
+            (Some(dx), Some(dy)) => georef_from_text(
+                json_text(&meta.origin),
+                json_text(&meta.units),
+                dx,
+                dy,
+                height,
+            ),
+            _ => None,
+        },
+    };
+    Ok(r)
+}
+
+/// Write a raster as raw little-endian f32 bytes plus a json sidecar.
+///
+/// Valid samples are cast to f32 (lossy for f64 and large i32 values); invalid samples hold
+/// the nodata value (as f32) or NaN when none is declared.
+pub fn write(r: &Raster) -> Result<(Vec<u8>, Vec<u8>)> {
+    let nodata32 = r.nodata.map(|v| v as f32);
+    let fill = nodata32.unwrap_or(f32::NAN);
+    let mut out = Vec::with_capacity(r.len() * 4);
+    for (i, &v) in r.data.iter().enumerate() {
+        let s = if r.is_valid(i) {
+            let s = v as f32;
+            if !s.is_finite() {
+                return Err(Error::invalid(format!(
+                    "sample {i} (row {}, col {}) = {v} does not fit in float32",
+                    i / r.width,
+                    i % r.width
+                )));
+            }
+            if nodata32 == Some(s) {
+                return Err(Error::invalid(format!(
+                    "sample {i} (row {}, col {}) = {v} equals the nodata value once rounded to float32",
+                    i / r.width,
+                    i % r.width
+                )));
+            }
+            s
+        } else {
+            fill
+        };
+        out.extend_from_slice(&s.to_le_bytes());
+    }
+    let meta = RawJsonOut {
+        width: r.width,
+        height: r.height,
+        source_dtype: r.sample_type.name(),
+        nodata: r.nodata.map(ExactF64),
+        dx: r.georef.as_ref().map(|g| ExactF64(g.pixel_size[0])),
+        dy: r.georef.as_ref().map(|g| ExactF64(g.pixel_size[1])),
+        row_order: "row 0 is the northern (top) edge; row-major, little-endian float32",
+        georef: r.georef.as_ref().map(GeorefJson::from),
+        value_mapping: (!r.mapping.is_identity()).then_some(MappingJson {
+            scale: ExactF64(r.mapping.scale),
+            offset: ExactF64(r.mapping.offset),
+        }),
+    };
+    let mut json = serde_json::to_vec_pretty(&meta)
+        .map_err(|e| Error::invalid(format!("cannot encode raw sidecar json: {e}")))?;
+    json.push(b'\n');
+    Ok((out, json))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testutil::*;
+
+    fn opts() -> ReadOptions {
+        ReadOptions::default()
+    }
+
+    #[test]
+    fn dtype_text() {
+        assert_eq!(
+            sample_type_from_text("int16 (big-endian, SRTM .hgt)"),
+            SampleType::I16
+        );
+        assert_eq!(sample_type_from_text("uint16"), SampleType::U16);
+        assert_eq!(
+            sample_type_from_text("uint16 PNG (grey 16-bit); elevation = value - 32768"),
+            SampleType::U16
+        );
+        assert_eq!(
+            sample_type_from_text("int32 (R integer matrix, class 'bathy')"),
+            SampleType::I32
+        );
+        assert_eq!(
+            sample_type_from_text("float64 LAS point coordinates gridded to float32"),
+            SampleType::F32
+        );
+        assert_eq!(
+            sample_type_from_text("ESRI ASCII grid (text decimal)"),
+            SampleType::F32
+        );
+        assert_eq!(
+            sample_type_from_text("Terrain-RGB PNG (RGBA 8-bit)"),
+            SampleType::F32
+        );
+        for t in [
+            SampleType::U8,
+            SampleType::I16,
+            SampleType::U16,
+            SampleType::I32,
+            SampleType::F32,
+        ] {
+            assert_eq!(sample_type_from_text(t.name()), t);
+        }
+        assert_eq!(sample_type_from_text("f64"), SampleType::F32);
+    }
+
+    #[test]
+    fn origin_text() {
+        let g = georef_from_text(
+            "cell centre of row 0, col 0 = lat 23, lon -160 (NW corner of the 1x1 degree tile N22W160)",
+            "degrees (WGS84 lon/lat); elevation metres (EGM96)",
+            1.0 / 1200.0,
+            1.0 / 1200.0,
+            1201,
+        )
+        .unwrap();
+        assert_eq!(g.origin, [-160.0, 23.0]);
+        assert_eq!(g.raster_type, RasterType::Point);
+        assert_eq!(g.epsg, Some(4326));
+        let g = georef_from_text(
+            "upper-left corner x=376313.6554542635, y=3807917.8276283755 (UTM 11N)",
+            "metres (UTM zone 11N, WGS84); elevation metres",
+            30.0,
+            30.0,
+            643,
+        )
+        .unwrap();
+        assert_eq!(g.origin, [376313.6554542635, 3807917.8276283755]);
+        assert_eq!(g.raster_type, RasterType::Area);
+        assert_eq!(g.epsg, Some(32611));
+        let g = georef_from_text(
+            "upper-left corner lon -97.4849999999961, lat 32.82166666666536",
+            "degrees (WGS84 lon/lat); elevation metres",
+            0.0008333333333333,
+            0.0008333333333333,
+            359,
+        )
+        .unwrap();
+        assert_eq!(g.origin, [-97.4849999999961, 32.82166666666536]);
+        let g = georef_from_text(
+            "lower-left corner x=0.0, y=0.0",
+            "metres (local coordinates, origin 0,0)",
+            2.0,
+            2.0,
+            10,
+        )
+        .unwrap();
+        assert_eq!(g.origin, [0.0, 20.0]);
+        assert_eq!(g.epsg, None);
+        let g = georef_from_text(
+            "upper-left corner x=84808.0, y=447642.0",
+            "metres (EPSG:28992 Amersfoort / RD New); elevation metres NAP",
+            0.5,
+            0.5,
+            459,
+        )
+        .unwrap();
+        assert_eq!(g.epsg, Some(28992));
+        assert!(
+            georef_from_text(
+                "NW corner approx lat 37.179392, lon -122.366765",
+                "",
+                200.0,
+                200.0,
+                540
+            )
+            .is_none()
+        );
+        assert!(georef_from_text("row 0 = first row of the STM file", "", 1.0, 1.0, 5).is_none());
+    }
+
+    #[test]
+    fn exact_f64_json() {
+        let mut rng = Rng(0x1234_5678_9abc_def1);
+        let mut vals: Vec<f64> = (0..20000).map(|_| f64::from_bits(rng.next())).collect();
+        vals.extend([
+            0.0,
+            -0.0,
+            0.016666666666666666,
+            1.0 / 3600.0,
+            -3.3999999521443642e38,
+            f64::NAN,
+            f64::INFINITY,
+            f64::MIN_POSITIVE,
+            5e-324,
+        ]);
+        for v in vals {
+            let s = serde_json::to_string(&ExactF64(v)).unwrap();
+            let back: ExactF64 = serde_json::from_str(&s).unwrap();
+            if v.is_nan() {
+                assert!(back.0.is_nan());
+            } else {
+                assert_eq!(back.0.to_bits(), v.to_bits(), "{v:?} via {s}");
+            }
+        }
+    }
+
+    fn sample_raster() -> Raster {
+        let mut r = Raster::from_values(
+            3,
+            2,
+            vec![1.5, -9999.0, 3.25, 0.125, f64::NAN, 7.0],
+            Some(-9999.0),
+            SampleType::F32,
+        )
+        .unwrap();
+        r.georef = Some(Georef {
+            origin: [0.1 + 0.2, 1.0 / 3.0],
+            pixel_size: [1.0 / 1200.0, 0.016666666666666666],
+            raster_type: RasterType::Point,
+            epsg: Some(4326),
+            wkt: Some("GEOGCS[\"WGS 84\"]".into()),
+            geokeys: Some(GeoKeys {
+                directory: vec![1, 1, 0, 1, 1024, 0, 1, 2],
+                doubles: vec![6378137.0, 298.257223563, 0.1 + 0.7],
+                ascii: "WGS 84|".into(),
+            }),
+        });
+        r.mapping = ValueMapping {
+            scale: 0.1,
+            offset: -10000.0,
+        };
+        r
+    }
+
+    #[test]
+    fn write_read_roundtrip() {
+        let r = sample_raster();
+        let (f, j) = write(&r).unwrap();
+        assert_eq!(f.len(), 24);
+        let back = read(&f, &j, &opts()).unwrap();
+        assert_same(&r, &back);
+        assert_eq!(back.mapping, r.mapping);
+        assert_eq!(back.nodata, Some(-9999.0));
+        // No nodata declared: invalid samples become NaN and read back invalid.
+        let r2 = Raster::from_values(2, 2, vec![1.0, f64::NAN, 3.0, 4.0], None, SampleType::I16)
+            .unwrap();
+        let (f, j) = write(&r2).unwrap();
+        assert!(f32::from_le_bytes([f[4], f[5], f[6], f[7]]).is_nan());
+        let back = read(&f, &j, &opts()).unwrap();
+        assert_same(&r2, &back);
+    }
+
+    #[test]
+    fn write_rejects_unrepresentable() {
+        let r = Raster::from_values(1, 1, vec![1e300], None, SampleType::F64).unwrap();
+        assert!(matches!(write(&r), Err(Error::InvalidArgument { .. })));
+        let r = Raster::from_values(2, 1, vec![-9999.00001, 1.0], Some(-9999.0), SampleType::F64)
+            .unwrap();
+        assert!(matches!(write(&r), Err(Error::InvalidArgument { .. })));
+    }
+
+    #[test]
+    fn garbage_and_limits() {
+        let r = sample_raster();
+        let (f, j) = write(&r).unwrap();
+        for cut in 0..f.len() {
+            assert!(read(&f[..cut], &j, &opts()).is_err());
+        }
+        for cut in 0..j.len() {
+            let _ = read(&f, &j[..cut], &opts());
+        }
+        let mut rng = Rng(99);
+        for len in [0, 1, 7, 100, 1000] {
+            let junk = rng.bytes(len);
+            assert!(read(&junk, &junk, &opts()).is_err());
+            assert!(read(&f, &junk, &opts()).is_err());
+        }
+        let big = br#"{"width": 100000000, "height": 100000000, "source_dtype": "f32"}"#;
+        assert!(matches!(
+            read(&[], big, &opts()),
+            Err(Error::LimitExceeded { .. })
+        ));
+        // An integer source_dtype the values do not fit falls back to a type they fit.
+        let u16_json = br#"{"width": 2, "height": 1, "source_dtype": "uint16"}"#;
+        let mut d = 1.0f32.to_le_bytes().to_vec();
+        d.extend(0.5f32.to_le_bytes());
+        assert_eq!(
+            read(&d, u16_json, &opts()).unwrap().sample_type,
+            SampleType::F32
+        );
+        let mut d = 1.0f32.to_le_bytes().to_vec();
+        d.extend((-3.0f32).to_le_bytes());
+        assert_eq!(
+            read(&d, u16_json, &opts()).unwrap().sample_type,
+            SampleType::I16
+        );
+        let mut d = 1.0f32.to_le_bytes().to_vec();
+        d.extend(1e6f32.to_le_bytes());
+        assert_eq!(
+            read(&d, u16_json, &opts()).unwrap().sample_type,
+            SampleType::I32
+        );
+        let mut d = 1.0f32.to_le_bytes().to_vec();
+        d.extend(f32::INFINITY.to_le_bytes());
+        let ok = br#"{"width": 2, "height": 1}"#;
+        assert!(matches!(read(&d, ok, &opts()), Err(Error::Corrupt { .. })));
+    }
+
+    #[test]
+    fn corpus_all() {
+        let Some(dir) = corpus() else { return };
+        let mut names: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .filter_map(|e| {
+                let p = e.unwrap().path();
+                (p.extension()? == "f32").then(|| p.file_stem().unwrap().to_string_lossy().into())
+            })
+            .collect();
+        names.sort();
+        assert!(!names.is_empty());
+        for name in &names {
+            let r = load_raw(&dir, name);
+            let meta: serde_json::Value =
+                serde_json::from_slice(&std::fs::read(dir.join(format!("{name}.json"))).unwrap())
+                    .unwrap();
+            assert_eq!(raster_bits(&r), raw_bits(&dir, name), "{name}");
+            let frac = meta["stats"]["nodata_fraction"].as_f64().unwrap_or(0.0);
+            let invalid = r.len() - r.valid_count();
+            assert!(
+                ((invalid as f64 / r.len() as f64) - frac).abs() < 1e-5,
+                "{name}: {invalid} invalid vs fraction {frac}"
+            );
+            // write → read is identical
+            let (f, j) = write(&r).unwrap();
+            let back = read(&f, &j, &opts()).unwrap();
+            assert_same(&r, &back);
+            eprintln!(
+                "{name}: {:?} nodata {:?} georef {:?}",
+                r.sample_type, r.nodata, r.georef
+            );
+        }
+        let k = load_raw(&dir, "srtm3_N22W160_kauai");
+        assert_eq!(k.sample_type, SampleType::I16);
+        assert_eq!(k.georef.as_ref().unwrap().origin, [-160.0, 23.0]);
+        assert_eq!(
+            load_raw(&dir, "etopo_aleutians_marmap").sample_type,
+            SampleType::I32
+        );
+        assert_eq!(load_raw(&dir, "scape_crater").sample_type, SampleType::U16);
+        assert_eq!(
+            load_raw(&dir, "srtm1_N45E013_istria_crop2400").sample_type,
+            SampleType::I16
+        );
+        assert!(load_raw(&dir, "scape_crater").georef.is_none());
+    }
+}

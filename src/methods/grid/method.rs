@@ -1,0 +1,38 @@
+//! The grid representation as the registry sees it.
+
+use super::{GridParams, decode, encode};
+use crate::container::SectionKind;
+use crate::error::Result;
+use crate::methods::{DecodeJob, EncodeJob, Encoded, Identity, Representation};
+
+/// Every sample, MED-predicted, lossless or quantized within the bound.
+pub(crate) struct Grid;
+
+impl Representation for Grid {
+    fn id(&self) -> &'static Identity {
+        &Identity {
+            name: "grid",
+            aliases: &[],
+            section: SectionKind(2),
+            section_name: "grid",
+        }
+    }
+    fn lossless_default(&self) -> bool {
+        true
+    }
+    fn encode(&self, job: &EncodeJob, _progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
+        let (payload, bound) = encode(
+            job.raster,
+            &GridParams {
+                max_error: job.max_error.unwrap_or(0.0),
+            },
+        )?;
+        Ok((payload, bound).into())
+    }
+    fn decode_full(&self, job: &DecodeJob) -> Result<Vec<f64>> {
+        decode(job.payload, job.header, job.mask)
+    }
+    fn has_stats(&self) -> bool {
+        false
+    }
+}

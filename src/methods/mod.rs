@@ -1,0 +1,337 @@
+//! The representations vtz writes: one folder per method, every one reached through
+//! [`REGISTRY`] and nothing else.
+//!
+//! A method turns a raster into one section payload and back. It uses the shared rooms
+//! below it (quant, predict, geometry, entropy, container framing helpers) and never imports
+//! another method. Adding a method is a new folder with a type implementing
+//! [`Representation`] and one line in [`REGISTRY`]; the codec, `vtz info`, `vtz decode
+//! --section NAME`, `--method NAME` and `vtz rd` find it there.
+
+pub(crate) mod fis;
+pub(crate) mod grid;
+pub(crate) mod haar;
+pub(crate) mod sites;
+
+pub use fis::FisOptions;
+pub use haar::HaarOptions;
+pub use sites::{Norm, SibsonOptions};
+
+use crate::container::{Header, SectionKind};
+use crate::error::{Error, Result};
+use crate::model::{Raster, Window};
+use std::fmt;
+use std::str::FromStr;
+
+/// Every method, in the order `--method best` tries them (on equal sizes the first wins).
+pub(crate) static REGISTRY: &[&dyn Representation] =
+    &[&sites::Sibson, &grid::Grid, &haar::Haar, &fis::Fis];
+
+/// A representation vtz can write (one per folder of `src/methods/`): `sibson`, `grid`,
+/// `haar`, `fis`. Parse one by name with [`FromStr`]; list them with [`Method::all`].
+#[derive(Clone, Copy)]
+pub struct Method(pub(crate) &'static dyn Representation);
+
+impl Method {
+    /// Greedy Voronoi/Sibson sites (needs a bound, an RMSE or a site count).
+    pub const SIBSON: Method = Method(&sites::Sibson);
+    /// Every sample, predicted and quantized (lossless or within a bound).
+    pub const GRID: Method = Method(&grid::Grid);
+    /// 2-D Haar wavelet, quantized and range coded (the Voronoi paper's baseline).
+    pub const HAAR: Method = Method(&haar::Haar);
+    /// Fractal interpolation surface on every k-th sample (the fractal-interpolation paper).
+    pub const FIS: Method = Method(&fis::Fis);
+
+    /// Every method this build knows, in the order `best` tries them.
+    pub fn all() -> impl Iterator<Item = Method> {
+        REGISTRY.iter().map(|&m| Method(m))
+    }
+
+    /// The method's name as the CLI spells it.
+    pub fn name(self) -> &'static str {
+        self.0.name()
+    }
+
+    /// Whether the method keeps statistics of its sections ([`crate::Decoder::stats`]).
+    pub fn has_stats(self) -> bool {
+        self.0.has_stats()
+    }
+
+    /// Parse a method name (or alias), case-insensitive.
+    pub fn parse(s: &str) -> Result<Method> {
+        by_name(s).map(Method).ok_or_else(|| {
+            let names: Vec<_> = Method::all().map(|m| m.name()).collect();
+            Error::invalid(format!(
+                "unknown method '{}' (best, {})",
+                s.to_ascii_lowercase(),
+                names.join(", ")
+            ))
+        })
+    }
+
+    /// Parse a `--method` value: `best` (an empty list) or a comma list of methods.
+    pub fn parse_list(s: &str) -> Result<Vec<Method>> {
+        let parts: Vec<&str> = s.split(',').collect();
+        if parts.len() == 1 && parts[0].eq_ignore_ascii_case("best") {
+            return Ok(Vec::new());
+        }
+        parts
+            .iter()
+            .map(|p| {
+                if p.eq_ignore_ascii_case("best") {
+                    Err(Error::invalid("'best' cannot be part of a method list"))
+                } else {
+                    Method::parse(p)
+                }
+            })
+            .collect()
+    }
+}
+
+impl FromStr for Method {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        Method::parse(s)
+    }
+}
+
+impl PartialEq for Method {
+    fn eq(&self, o: &Method) -> bool {
+        self.name() == o.name()
+    }
+}
+impl Eq for Method {}
+
+impl fmt::Debug for Method {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "Method({})", self.name())
+    }
+}
+impl fmt::Display for Method {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The settings each method reads, one field per method that has any.
+#[derive(Clone, Debug, Default, PartialEq)]
+#[non_exhaustive]
+pub struct MethodParams {
+    pub sibson: sites::SibsonOptions,
+    pub fis: fis::FisOptions,
+    pub haar: haar::HaarOptions,
+}
+
+/// Who a method is: its names and its section type.
+pub(crate) struct Identity {
+    /// The name the CLI and the API spell it with.
+    pub name: &'static str,
+    /// Other names `--method` accepts.
+    pub aliases: &'static [&'static str],
+    /// The section type code its payloads are stored under (spec/FORMAT.md).
+    pub section: SectionKind,
+    /// The section type's name in the spec, `vtz info` and `--section`.
+    pub section_name: &'static str,
+}
+
+/// What one method is to the codec: its identity, its encoder, its decoder (full and
+/// windowed) and its own description of a payload.
+pub(crate) trait Representation: Sync {
+    /// Its names and section type.
+    fn id(&self) -> &'static Identity;
+    fn name(&self) -> &'static str {
+        self.id().name
+    }
+    fn aliases(&self) -> &'static [&'static str] {
+        self.id().aliases
+    }
+    fn section(&self) -> SectionKind {
+        self.id().section
+    }
+    fn section_name(&self) -> &'static str {
+        self.id().section_name
+    }
+    /// When the options hold settings that only this method reads: the message for a caller
+    /// who set them but chose another method.
+    fn own_options(&self, _params: &MethodParams) -> Option<&'static str> {
+        None
+    }
+    /// Copy this method's own settings (and nothing else) from `from` into `to`.
+    fn keep_own(&self, _from: &MethodParams, _to: &mut MethodParams) {}
+    /// Whether `best` tries it for a lossless request.
+    fn lossless_default(&self) -> bool {
+        false
+    }
+    /// Encode the job's raster into a payload that meets the job's request, or say why not.
+    fn encode(&self, job: &EncodeJob, progress: &mut dyn FnMut(f64)) -> Result<Encoded>;
+    /// Decode the whole raster (invalid samples get the nodata fill).
+    fn decode_full(&self, job: &DecodeJob) -> Result<Vec<f64>>;
+    /// Decode the job's window; methods that can evaluate a window alone override this.
+    fn decode(&self, job: &DecodeJob) -> Result<Vec<f64>> {
+        let full = self.decode_full(job)?;
+        Ok(crop(&full, job.header.width as usize, job.window))
+    }
+    /// Whether the payload is progressive (a prefix of `--sites N` / `--level K` decodes).
+    fn progressive(&self) -> bool {
+        false
+    }
+    /// Evaluate the surface on a grid scaled by `num/den`; methods without a continuous
+    /// surface leave this out.
+    fn decode_scaled(&self, _job: &DecodeJob, _num: u32, _den: u32) -> Result<Scaled> {
+        Err(Error::invalid(format!(
+            "--scale needs a sites section (this one is {})",
+            self.name()
+        )))
+    }
+    /// The method's own statistics of a payload (what `vtz info --stats` prints); `None`
+    /// for a method that keeps none.
+    fn describe(&self, _job: &DecodeJob) -> Result<Option<Stats>> {
+        Ok(None)
+    }
+    /// Whether [`Representation::describe`] reports statistics (`vtz info --json` shows
+    /// a key for each such method).
+    fn has_stats(&self) -> bool {
+        true
+    }
+    /// The sites a payload stores, in importance order, with their level; `None` for
+    /// methods that store no sites.
+    fn sites(&self, _job: &DecodeJob) -> Result<Option<Vec<Site>>> {
+        Ok(None)
+    }
+}
+
+/// What a method encodes: the raster, its header, the max error in data units (`None` or 0
+/// = lossless) and the caller's options, with the surface it is layered on when it refines
+/// another section (reserved for the residual layer; `None` for every method today).
+pub(crate) struct EncodeJob<'a> {
+    pub raster: &'a Raster,
+    pub header: &'a Header,
+    pub max_error: Option<f64>,
+    pub params: &'a MethodParams,
+    #[allow(dead_code)]
+    pub base: Option<&'a [f64]>,
+}
+
+impl EncodeJob<'_> {
+    pub fn lossless(&self) -> bool {
+        self.max_error.is_none_or(|e| e == 0.0)
+    }
+}
+
+/// One encoded section payload before it goes into the container.
+pub(crate) struct Encoded {
+    pub payload: Vec<u8>,
+    /// The max error the decoded payload keeps on every valid sample (0 = lossless).
+    pub bound: f64,
+    /// The method's statistics, when it measures them while encoding.
+    pub stats: Option<Stats>,
+}
+
+impl From<(Vec<u8>, f64)> for Encoded {
+    /// A payload and its bound, without statistics.
+    fn from((payload, bound): (Vec<u8>, f64)) -> Encoded {
+        Encoded {
+            payload,
+            bound,
+            stats: None,
+        }
+    }
+}
+
+/// What a method decodes: a payload, the header and mask, the window and the decode options
+/// a progressive method reads (`sites`, `levels`, `threads`).
+pub(crate) struct DecodeJob<'a> {
+    pub payload: &'a [u8],
+    pub header: &'a Header,
+    pub mask: Option<&'a [bool]>,
+    pub window: Window,
+    pub sites: Option<usize>,
+    pub levels: Option<usize>,
+    pub threads: usize,
+    /// The decoded surface of the section this one refines (reserved for the residual
+    /// layer; `None` for every method today).
+    #[allow(dead_code)]
+    pub base: Option<&'a [f64]>,
+}
+
+/// A surface evaluated on a resampled grid: values, validity, width, height.
+pub(crate) type Scaled = (Vec<f64>, Vec<bool>, usize, usize);
+
+/// A method's own statistics of one section (what `vtz info --stats` shows).
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct Stats {
+    /// The method that wrote the section.
+    pub method: Method,
+    /// Named values, in the method's order (the keys of `vtz info --stats --json`).
+    pub values: Vec<(&'static str, StatValue)>,
+    /// The same for people, one line each.
+    pub lines: Vec<String>,
+}
+
+/// One statistic's value.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum StatValue {
+    Count(u64),
+    Number(f64),
+    Counts(Vec<u64>),
+}
+
+impl Stats {
+    /// The value named `key`.
+    pub fn get(&self, key: &str) -> Option<&StatValue> {
+        self.values.iter().find(|(k, _)| *k == key).map(|(_, v)| v)
+    }
+    /// The count named `key`.
+    pub fn count(&self, key: &str) -> Option<u64> {
+        match self.get(key)? {
+            StatValue::Count(n) => Some(*n),
+            _ => None,
+        }
+    }
+    /// The number named `key` (a count converts).
+    pub fn number(&self, key: &str) -> Option<f64> {
+        match self.get(key)? {
+            StatValue::Number(v) => Some(*v),
+            StatValue::Count(n) => Some(*n as f64),
+            StatValue::Counts(_) => None,
+        }
+    }
+}
+
+/// One stored site of a sites section.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct Site {
+    /// Position in importance order (0 = inserted first).
+    pub rank: usize,
+    /// The progressive level it belongs to.
+    pub level: usize,
+    pub col: usize,
+    pub row: usize,
+    /// The stored (quantized) height.
+    pub height: f64,
+}
+
+/// The method registered under `name` or one of its aliases (case-insensitive).
+pub(crate) fn by_name(name: &str) -> Option<&'static dyn Representation> {
+    let n = name.to_ascii_lowercase();
+    REGISTRY
+        .iter()
+        .copied()
+        .find(|m| m.name() == n || m.section_name() == n || m.aliases().contains(&n.as_str()))
+}
+
+/// The method whose sections have type `kind`.
+pub(crate) fn by_section(kind: SectionKind) -> Option<&'static dyn Representation> {
+    REGISTRY.iter().copied().find(|m| m.section() == kind)
+}
+
+/// Crop a full decode to a window.
+pub(crate) fn crop<T: Copy>(v: &[T], width: usize, win: Window) -> Vec<T> {
+    let mut out = Vec::with_capacity(win.width * win.height);
+    for y in win.y..win.y + win.height {
+        out.extend_from_slice(&v[y * width + win.x..y * width + win.x + win.width]);
+    }
+    out
+}

@@ -1,0 +1,583 @@
+//! The sites section: greedy Voronoi/Sibson sites in progressive levels, range coded.
+//!
+//! Encoder: select sites greedily ([`select`]), group them in levels of doubling size
+//! (the first level holds the convex hull), sort each level by sample index, then code per
+//! site the gap to the previous index of its level and the height code's difference from the
+//! code predicted by the surface of every site before it. The encoder then decodes exactly as
+//! a decoder will, checks the bound on every valid sample, and adds the violators as a last
+//! level until none is left (closed loop).
+
+pub(crate) mod select;
+
+use crate::container::Header;
+use crate::container::bytes::{ByteReader, PutLe};
+use crate::entropy::range::{Decoder, Encoder, IntModel, UIntModel};
+use crate::error::{Error, Result};
+use crate::geometry::sibson::{Scratch, Surface};
+use crate::model::{Raster, SampleType};
+pub(crate) use method::Sibson;
+pub use method::SibsonOptions;
+pub use select::Norm;
+mod method;
+use crate::quant::{Errors, code_of, finish_value, height_of};
+use select::{Samples, SelectParams};
+
+const CODING_LEVELS_RANGE: u8 = 0;
+/// Most levels a decoder accepts.
+pub const MAX_LEVELS: u32 = 64;
+/// Most closed-loop repair rounds before giving up.
+const MAX_REPAIRS: usize = 16;
+
+/// Parameters of the sites representation.
+#[derive(Clone, Debug, Default)]
+pub struct SitesParams {
+    /// Guarantee |decoded − source| ≤ this on every valid sample (data units).
+    pub max_error: Option<f64>,
+    /// Stop when the RMSE is at most this (data units).
+    pub rmse: Option<f64>,
+    /// Stop at this many sites.
+    pub max_sites: Option<usize>,
+    pub norm: Norm,
+    /// Height quantization step as a fraction of the error target (default 1.0).
+    pub step_factor: Option<f64>,
+}
+
+/// Statistics of an encoded sites section.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SitesStats {
+    pub sites: usize,
+    /// Sites on the convex hull of the valid samples (the start of the first level).
+    pub hull: usize,
+    pub levels: Vec<usize>,
+    pub position_bits: f64,
+    pub height_bits: f64,
+    pub max_error: f64,
+    pub rmse: f64,
+}
+
+/// A decoded site stream.
+#[derive(Clone, Debug)]
+pub struct DecodedSites {
+    /// The surface over the decoded sites.
+    pub surface: Surface,
+    /// (sample index, height) per site in decode order.
+    pub sites: Vec<(u32, f64)>,
+    /// Sites in each decoded level.
+    pub levels: Vec<usize>,
+    /// The max error the encoder measured on every valid sample of the full stream.
+    pub max_error: f64,
+    /// The RMSE the encoder measured for the full stream.
+    pub rmse: f64,
+    pub step: f64,
+    pub offset: f64,
+}
+
+/// Level sizes: the first holds the hull (at least 16 sites), then each doubles.
+fn level_sizes(total: usize, hull: usize) -> Vec<usize> {
+    let mut sizes = Vec::new();
+    let mut done = 0;
+    let mut next = hull.max(16);
+    while done < total {
+        let n = next.min(total - done);
+        sizes.push(n);
+        done += n;
+        next = done;
+    }
+    sizes
+}
+
+/// What the encoder and the decoder of a site stream share, so both walk it the same way:
+/// the adaptive models, the surface of the sites so far and the previous height code. For
+/// every site both call [`SiteStream::predict`], code or decode against it, then
+/// [`SiteStream::push`].
+struct SiteStream {
+    pos: UIntModel,
+    height: IntModel,
+    surf: Surface,
+    sc: Scratch,
+    prev_code: i64,
+    hint: u32,
+    step: f64,
+    offset: f64,
+}
+
+impl SiteStream {
+    fn new(step: f64, offset: f64) -> SiteStream {
+        SiteStream {
+            pos: UIntModel::new(),
+            height: IntModel::new(),
+            surf: Surface::new(),
+            sc: Scratch::default(),
+            prev_code: 0,
+            hint: u32::MAX,
+            step,
+            offset,
+        }
+    }
+
+    /// The predicted height code at `p`: the surface there, else the previous code.
+    fn predict(&mut self, p: [i64; 2]) -> i64 {
+        match self.surf.eval(p, &mut self.hint, &mut self.sc) {
+            Some(v) => code_of(v, self.step, self.offset),
+            None => self.prev_code,
+        }
+    }
+
+    /// Add the site at `p` with height code `code` (and its height `h`).
+    fn push(&mut self, p: [i64; 2], code: i64, h: f64) -> Result<()> {
+        self.surf.insert_near(p, h, Some(self.hint))?;
+        self.prev_code = code;
+        Ok(())
+    }
+}
+
+/// Code levels of (sample index, code) sites; each level sorted by index.
+fn write_levels(
+    levels: &[Vec<(u32, i64)>],
+    width: usize,
+    (step, offset): (f64, f64),
+    (bound, rmse): (f64, f64),
+    stats: &mut SitesStats,
+) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    out.put_u8(CODING_LEVELS_RANGE);
+    out.put_u8(0);
+    out.put_u16(0);
+    out.put_f64(step);
+    out.put_f64(offset);
+    out.put_f64(bound);
+    out.put_f64(rmse);
+    let total: usize = levels.iter().map(|l| l.len()).sum();
+    out.put_u32(total as u32);
+    out.put_u32(levels.len() as u32);
+    let mut st = SiteStream::new(step, offset);
+    let mut streams = Vec::new();
+    for level in levels {
+        let mut enc = Encoder::new();
+        let mut prev_idx: Option<u32> = None;
+        for &(idx, code) in level {
+            let gap = match prev_idx {
+                None => idx as u64,
+                Some(p) => (idx - p - 1) as u64,
+            };
+            let before = enc.len_estimate();
+            st.pos.encode(&mut enc, gap);
+            let mid = enc.len_estimate();
+            let p = [(idx as usize % width) as i64, (idx as usize / width) as i64];
+            let pred = st.predict(p);
+            st.height.encode(&mut enc, code - pred);
+            let after = enc.len_estimate();
+            stats.position_bits += 8.0 * (mid - before) as f64;
+            stats.height_bits += 8.0 * (after - mid) as f64;
+            st.push(p, code, height_of(code, step, offset))?;
+            prev_idx = Some(idx);
+        }
+        streams.push(enc.finish());
+    }
+    for (l, s) in levels.iter().zip(&streams) {
+        out.put_u32(l.len() as u32);
+        out.put_u32(s.len() as u32);
+    }
+    for s in streams {
+        out.extend_from_slice(&s);
+    }
+    Ok(out)
+}
+
+/// Decode a sites section, stopping after `max_levels` levels or `max_sites` sites.
+pub fn decode_sites(
+    payload: &[u8],
+    header: &Header,
+    mask: Option<&[bool]>,
+    max_levels: Option<usize>,
+    max_sites: Option<usize>,
+) -> Result<DecodedSites> {
+    let mut r = ByteReader::new(payload, "sites section");
+    let coding = r.u8("coding")?;
+    if coding != CODING_LEVELS_RANGE {
+        return Err(r.corrupt(format!("coding {coding} is not defined")));
+    }
+    if r.u8("flags")? != 0 || r.u16("reserved")? != 0 {
+        return Err(r.corrupt("reserved fields are not zero"));
+    }
+    let step = r.finite_f64("step")?;
+    if step <= 0.0 {
+        return Err(r.corrupt("step is not positive"));
+    }
+    let offset = r.finite_f64("offset")?;
+    let bound = r.finite_f64("max error")?;
+    let rmse = r.finite_f64("rmse")?;
+    if bound < 0.0 || rmse < 0.0 {
+        return Err(r.corrupt("max error or rmse is negative"));
+    }
+    let total = r.u32("site count")? as u64;
+    let n = header.samples();
+    if total > n {
+        return Err(r.corrupt(format!("{total} sites in a raster of {n} samples")));
+    }
+    let nlev = r.u32("level count")?;
+    if nlev > MAX_LEVELS {
+        return Err(r.corrupt(format!("{nlev} levels (at most {MAX_LEVELS})")));
+    }
+    let mut dir = Vec::with_capacity(nlev as usize);
+    let (mut sum_sites, mut sum_bytes) = (0u64, 0u64);
+    for _ in 0..nlev {
+        let s = r.u32("level sites")? as u64;
+        let b = r.u32("level bytes")? as u64;
+        sum_sites += s;
+        sum_bytes += b;
+        dir.push((s as usize, b as usize));
+    }
+    if sum_sites != total {
+        return Err(r.corrupt("level site counts do not add up to the site count"));
+    }
+    if sum_bytes != r.remaining() as u64 {
+        return Err(r.corrupt("level lengths do not add up to the section length"));
+    }
+    let width = header.width as usize;
+    let mut st = SiteStream::new(step, offset);
+    let mut sites = Vec::new();
+    let mut levels = Vec::new();
+    // A prefix never stops inside the first level: it holds the hull, without which the
+    // surface would not cover the raster.
+    let first = dir.first().map_or(0, |d| d.0);
+    let want_sites = max_sites.unwrap_or(usize::MAX).max(first);
+    let want_levels = max_levels.unwrap_or(usize::MAX).max(1);
+    for (li, &(count, bytes)) in dir.iter().enumerate() {
+        let stream = r.take(bytes, "level stream")?;
+        if li >= want_levels || sites.len() >= want_sites {
+            continue;
+        }
+        let mut dec = Decoder::new(stream)?;
+        let mut prev_idx: Option<u64> = None;
+        let mut got = 0;
+        for _ in 0..count {
+            if sites.len() >= want_sites {
+                break;
+            }
+            let gap = st.pos.decode(&mut dec)?;
+            let idx = match prev_idx {
+                None => gap,
+                Some(p) => p
+                    .checked_add(gap + 1)
+                    .ok_or_else(|| r.corrupt("site index overflows"))?,
+            };
+            if idx >= n {
+                return Err(r.corrupt(format!("site index {idx} beyond {n} samples")));
+            }
+            if mask.is_some_and(|m| !m[idx as usize]) {
+                return Err(r.corrupt(format!("site {idx} is a nodata sample")));
+            }
+            let p = [(idx as usize % width) as i64, (idx as usize / width) as i64];
+            let pred = st.predict(p);
+            let code = pred
+                .checked_add(st.height.decode(&mut dec)?)
+                .ok_or_else(|| r.corrupt("height code overflows"))?;
+            let h = height_of(code, step, offset);
+            if !h.is_finite() {
+                return Err(r.corrupt("site height is not finite"));
+            }
+            st.push(p, code, h)
+                .map_err(|_| r.corrupt(format!("site {idx} is repeated")))?;
+            sites.push((idx as u32, h));
+            prev_idx = Some(idx);
+            got += 1;
+        }
+        if got == count {
+            dec.finish()?;
+        } else {
+            dec.check_in_bounds()?;
+        }
+        levels.push(got);
+    }
+    Ok(DecodedSites {
+        surface: st.surf,
+        sites,
+        levels,
+        max_error: bound,
+        rmse,
+        step,
+        offset,
+    })
+}
+
+/// Evaluate decoded sites on a window of the raster (valid samples only), rounded to the
+/// output sample type. Invalid samples get the nodata fill. The window is split into bands
+/// of rows evaluated on up to `threads` threads; every value is a pure function of the
+/// sites, so the result is bit-identical for any thread count.
+pub fn render(
+    d: &DecodedSites,
+    header: &Header,
+    mask: Option<&[bool]>,
+    window: (usize, usize, usize, usize),
+    threads: usize,
+) -> Result<Vec<f64>> {
+    let (x0, y0, w, h) = window;
+    let width = header.width as usize;
+    let valid = |x: i64, y: i64| mask.is_none_or(|m| m[y as usize * width + x as usize]);
+    let threads = threads.clamp(1, 64).min(h.div_ceil(64).max(1));
+    let band = h.div_ceil(threads);
+    let bands: Vec<Option<Vec<f64>>> = if threads == 1 {
+        vec![d.surface.eval_window(x0 as i64, y0 as i64, w, h, valid)]
+    } else {
+        std::thread::scope(|sc| {
+            let handles: Vec<_> = (0..threads)
+                .map(|k| {
+                    let (by, bh) = (k * band, band.min(h.saturating_sub(k * band)));
+                    let surface = &d.surface;
+                    sc.spawn(move || {
+                        if bh == 0 {
+                            return Some(Vec::new());
+                        }
+                        surface.eval_window(x0 as i64, (y0 + by) as i64, w, bh, valid)
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|hd| hd.join().unwrap_or(None))
+                .collect()
+        })
+    };
+    let mut vals = Vec::with_capacity(w * h);
+    for b in bands {
+        vals.extend(b.ok_or_else(|| {
+            Error::corrupt("sites section: the sites do not cover every valid sample")
+        })?);
+    }
+    let fill = header.nodata.unwrap_or(f64::NAN);
+    for yy in 0..h {
+        for xx in 0..w {
+            let i = yy * w + xx;
+            vals[i] = if valid((x0 + xx) as i64, (y0 + yy) as i64) {
+                finish_value(vals[i], header)
+            } else {
+                fill
+            };
+        }
+    }
+    Ok(vals)
+}
+
+/// Statistics of a sites section as stored: counts, levels, bits per site for positions and
+/// heights (measured by coding the decoded stream again), and the encoder's L∞ / RMSE.
+pub fn stats(payload: &[u8], header: &Header, mask: Option<&[bool]>) -> Result<SitesStats> {
+    let d = decode_sites(payload, header, mask, None, None)?;
+    let width = header.width as usize;
+    let mut levels = Vec::new();
+    let mut at = 0;
+    for &n in &d.levels {
+        levels.push(
+            d.sites[at..at + n]
+                .iter()
+                .map(|&(i, h)| (i, code_of(h, d.step, d.offset)))
+                .collect::<Vec<_>>(),
+        );
+        at += n;
+    }
+    let mut st = SitesStats::default();
+    write_levels(
+        &levels,
+        width,
+        (d.step, d.offset),
+        (d.max_error, d.rmse),
+        &mut st,
+    )?;
+    st.sites = d.sites.len();
+    st.levels = d.levels.clone();
+    st.max_error = d.max_error;
+    st.rmse = d.rmse;
+    Ok(st)
+}
+
+/// Evaluate decoded sites on a grid scaled by `num/den` (2/1 doubles the resolution, 1/2
+/// halves it): output sample (i, j) sits at source position (i·den/num, j·den/num). Exact
+/// lattice arithmetic: the sites are placed at `num ×` their integer positions and every
+/// `den`-th lattice point is evaluated. Returns (values, mask, width, height); a sample is
+/// valid when its nearest source sample is valid and it lies within the sites' hull.
+pub fn render_scaled(
+    d: &DecodedSites,
+    header: &Header,
+    mask: Option<&[bool]>,
+    num: u32,
+    den: u32,
+) -> Result<(Vec<f64>, Vec<bool>, usize, usize)> {
+    let (w, h) = (header.width as usize, header.height as usize);
+    let (p, q) = (num.max(1) as i64, den.max(1) as i64);
+    if (w.max(h) as i64 - 1) * p > crate::geometry::triangulation::MAX_COORD {
+        return Err(Error::limit("scale too large for this raster"));
+    }
+    let ow = ((w as i64 - 1) * p / q + 1) as usize;
+    let oh = ((h as i64 - 1) * p / q + 1) as usize;
+    let mut surf = Surface::new();
+    let mut hint = u32::MAX;
+    for &(idx, ht) in &d.sites {
+        let (x, y) = ((idx as usize % w) as i64, (idx as usize / w) as i64);
+        surf.insert_near([x * p, y * p], ht, Some(hint))?;
+        hint = surf
+            .triangulation()
+            .created()
+            .first()
+            .copied()
+            .unwrap_or(u32::MAX);
+    }
+    // Nearest source sample of a lattice point (x, y) in site space (round half up).
+    let nearest = |x: i64, y: i64| {
+        let sx = ((2 * x + p) / (2 * p)).min(w as i64 - 1) as usize;
+        let sy = ((2 * y + p) / (2 * p)).min(h as i64 - 1) as usize;
+        sy * w + sx
+    };
+    let want = |x: i64, y: i64| mask.is_none_or(|m| m[nearest(x, y)]);
+    let vals = surf.eval_lattice(0, 0, ow, oh, q, &want);
+    let fill = header.nodata.unwrap_or(f64::NAN);
+    let mut out_mask = vec![true; ow * oh];
+    let out = vals
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| {
+            if v.is_nan() {
+                out_mask[i] = false;
+                fill
+            } else {
+                finish_value(v, header)
+            }
+        })
+        .collect();
+    Ok((out, out_mask, ow, oh))
+}
+
+/// Threads to use by default: what the machine offers.
+pub fn default_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// The most frequent valid value when it covers at least 5 % of the valid samples.
+fn modal_value(r: &Raster) -> Option<f64> {
+    let mut counts: std::collections::HashMap<u64, usize> = std::collections::HashMap::new();
+    let mut valid = 0usize;
+    for (i, &v) in r.data.iter().enumerate() {
+        if r.is_valid(i) {
+            *counts.entry(v.to_bits()).or_default() += 1;
+            valid += 1;
+        }
+    }
+    let (bits, n) = counts
+        .into_iter()
+        .max_by_key(|&(b, n)| (n, std::cmp::Reverse(b)))?;
+    (n * 20 >= valid).then(|| f64::from_bits(bits))
+}
+
+/// Encode a raster as a sites-section payload; returns it with its statistics.
+pub fn encode(
+    r: &Raster,
+    header: &Header,
+    params: &SitesParams,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(Vec<u8>, SitesStats)> {
+    let (w, h) = (r.width, r.height);
+    if w as i64 > crate::geometry::triangulation::MAX_COORD
+        || h as i64 > crate::geometry::triangulation::MAX_COORD
+    {
+        return Err(Error::limit("raster too large for the sites method"));
+    }
+    if params.max_error.is_none() && params.rmse.is_none() && params.max_sites.is_none() {
+        return Err(Error::invalid(
+            "the sites method needs a stopping rule: --max-error, --rmse or --sites",
+        ));
+    }
+    let range = r
+        .valid_range()
+        .map_or(1.0, |(lo, hi)| (hi - lo).max(f64::MIN_POSITIVE));
+    // Put the height lattice on the most common value (sea level, a lake, a nodata-filled
+    // plain) so sites in flat regions are exact; fall back to the minimum.
+    let offset = modal_value(r)
+        .or(r.valid_range().map(|(lo, _)| lo))
+        .unwrap_or(0.0);
+    // The error the surface may have before output rounding, so that the rounded output
+    // still meets the bound: integer outputs round to the nearest code.
+    let inner = params.max_error.map(|e| match r.sample_type {
+        st if st.is_integer() && r.mapping.scale.abs() == 1.0 && e >= 0.5 => e.floor() + 0.499,
+        SampleType::F32 => e - range.max(offset.abs()) * 2f64.powi(-22),
+        _ => e,
+    });
+    let target = inner.or(params.rmse).unwrap_or(range / 4096.0);
+    let step = (target * params.step_factor.unwrap_or(1.0)).max(range * 1e-9);
+    let valid = |i: usize| r.is_valid(i);
+    let samples = Samples {
+        width: w,
+        height: h,
+        values: &r.data,
+        valid: &valid,
+    };
+    let sp = SelectParams {
+        max_error: inner,
+        rmse: params.rmse,
+        max_sites: params.max_sites,
+        norm: params.norm,
+        step,
+        offset,
+    };
+    let sel = select::select(&samples, &sp, progress)?;
+    // Levels in importance order, each sorted by index.
+    let mut levels: Vec<Vec<(u32, i64)>> = Vec::new();
+    let mut at = 0;
+    for n in level_sizes(sel.sites.len(), sel.hull) {
+        let mut l = sel.sites[at..at + n].to_vec();
+        l.sort_unstable();
+        levels.push(l);
+        at += n;
+    }
+    let mut mask_vec: Option<Vec<bool>> = r.mask.clone();
+    for round in 0..=MAX_REPAIRS {
+        let mut stats = SitesStats::default();
+        let payload = write_levels(&levels, w, (step, offset), (0.0, 0.0), &mut stats)?;
+        // Closed loop: decode exactly as a decoder does and measure.
+        let d = decode_sites(&payload, header, mask_vec.as_deref(), None, None)?;
+        let out = render(
+            &d,
+            header,
+            mask_vec.as_deref(),
+            (0, 0, w, h),
+            default_threads(),
+        )?;
+        let mut errs = Errors::default();
+        let mut bad: Vec<(u32, i64)> = Vec::new();
+        for (i, &o) in out.iter().enumerate() {
+            if !r.is_valid(i) {
+                continue;
+            }
+            let e = errs.add(o, r.data[i]);
+            if params.max_error.is_some_and(|me| e > me) {
+                bad.push((i as u32, code_of(r.data[i], step, offset)));
+            }
+        }
+        if bad.is_empty() || round == MAX_REPAIRS {
+            if !bad.is_empty() {
+                return Err(Error::invalid(format!(
+                    "the sites method could not meet the bound after {MAX_REPAIRS} repair rounds"
+                )));
+            }
+            let (max, rmse) = (errs.max, errs.rmse());
+            let mut stats2 = SitesStats::default();
+            let payload = write_levels(&levels, w, (step, offset), (max, rmse), &mut stats2)?;
+            stats2.sites = levels.iter().map(|l| l.len()).sum();
+            stats2.hull = sel.hull;
+            stats2.levels = levels.iter().map(|l| l.len()).collect();
+            stats2.max_error = max;
+            stats2.rmse = rmse;
+            mask_vec.take();
+            return Ok((payload, stats2));
+        }
+        // Violators that are already sites cannot be helped by a new site: step too coarse.
+        let have: std::collections::HashSet<u32> = levels.iter().flatten().map(|s| s.0).collect();
+        bad.retain(|s| !have.contains(&s.0));
+        if bad.is_empty() {
+            return Err(Error::invalid(
+                "the sites method cannot meet this bound with its height step",
+            ));
+        }
+        bad.sort_unstable();
+        levels.push(bad);
+    }
+    unreachable!("the loop returns")
+}

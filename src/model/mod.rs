@@ -1,0 +1,387 @@
+//! The raster model: samples, validity mask, sample type, value mapping and georeferencing.
+//!
+//! Every format reads into a [`Raster`] and writes from one; every method encodes one.
+
+use crate::error::{Error, Result};
+use std::str::FromStr;
+
+mod fill;
+pub(crate) use fill::fill_invalid;
+
+/// The type the source stored its samples in. Values are held as `f64` in memory (exact for
+/// every type listed), and writers convert back to this type.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SampleType {
+    U8,
+    I16,
+    U16,
+    I32,
+    F32,
+    F64,
+}
+
+impl SampleType {
+    /// Stable on-disk code (see spec/FORMAT.md).
+    pub fn code(self) -> u8 {
+        match self {
+            SampleType::U8 => 0,
+            SampleType::I16 => 1,
+            SampleType::U16 => 2,
+            SampleType::I32 => 3,
+            SampleType::F32 => 4,
+            SampleType::F64 => 5,
+        }
+    }
+    pub fn from_code(c: u8) -> Option<Self> {
+        Some(match c {
+            0 => SampleType::U8,
+            1 => SampleType::I16,
+            2 => SampleType::U16,
+            3 => SampleType::I32,
+            4 => SampleType::F32,
+            5 => SampleType::F64,
+            _ => return None,
+        })
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            SampleType::U8 => "u8",
+            SampleType::I16 => "i16",
+            SampleType::U16 => "u16",
+            SampleType::I32 => "i32",
+            SampleType::F32 => "f32",
+            SampleType::F64 => "f64",
+        }
+    }
+    /// Bits one sample takes in the source type (for compression ratios).
+    pub fn bits(self) -> u32 {
+        match self {
+            SampleType::U8 => 8,
+            SampleType::I16 | SampleType::U16 => 16,
+            SampleType::I32 | SampleType::F32 => 32,
+            SampleType::F64 => 64,
+        }
+    }
+    pub fn is_integer(self) -> bool {
+        matches!(
+            self,
+            SampleType::U8 | SampleType::I16 | SampleType::U16 | SampleType::I32
+        )
+    }
+    /// Inclusive range of integer codes this type can hold (None for floats).
+    pub fn int_range(self) -> Option<(f64, f64)> {
+        match self {
+            SampleType::U8 => Some((0.0, 255.0)),
+            SampleType::I16 => Some((i16::MIN as f64, i16::MAX as f64)),
+            SampleType::U16 => Some((0.0, u16::MAX as f64)),
+            SampleType::I32 => Some((i32::MIN as f64, i32::MAX as f64)),
+            _ => None,
+        }
+    }
+}
+
+/// Whether a pixel value describes the whole cell (GeoTIFF `PixelIsArea`) or the point at
+/// its centre (`PixelIsPoint`, e.g. SRTM `.hgt` posts).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum RasterType {
+    Area,
+    Point,
+}
+
+/// The GeoTIFF georeferencing tags, kept verbatim so that a GeoTIFF → vtz → GeoTIFF round
+/// trip gives GDAL exactly the same CRS (GDAL needs all three GeoKey tags).
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct GeoKeys {
+    /// GeoKeyDirectoryTag (34735), all shorts including the 4-short header.
+    pub directory: Vec<u16>,
+    /// GeoDoubleParamsTag (34736).
+    pub doubles: Vec<f64>,
+    /// GeoAsciiParamsTag (34737), including its `|` separators (no trailing NUL).
+    pub ascii: String,
+}
+
+/// Where the raster sits on the Earth (or in a model space).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Georef {
+    /// Model coordinates (x = east, y = north) of the upper-left *corner* of pixel (0, 0)
+    /// for [`RasterType::Area`], of its *centre* for [`RasterType::Point`].
+    pub origin: [f64; 2],
+    /// Pixel size along x (to the east) and y (to the south), positive for north-up rasters.
+    pub pixel_size: [f64; 2],
+    pub raster_type: RasterType,
+    /// EPSG code of the CRS when known.
+    pub epsg: Option<u32>,
+    /// A WKT or PROJ description of the CRS when the source gave one.
+    pub wkt: Option<String>,
+    /// Raw GeoTIFF keys when the source was a GeoTIFF (or a .vtz made from one).
+    pub geokeys: Option<GeoKeys>,
+}
+
+impl Georef {
+    /// Georef of a rectangular sub-window starting at pixel (x0, y0), or of a grid resampled
+    /// by `scale` (output pixel = input pixel / scale).
+    pub fn window(&self, x0: usize, y0: usize) -> Georef {
+        let mut g = self.clone();
+        g.origin[0] += x0 as f64 * self.pixel_size[0];
+        g.origin[1] -= y0 as f64 * self.pixel_size[1];
+        g
+    }
+}
+
+/// How integer codes map to physical values: `value = offset + scale * code`
+/// (e.g. a 16-bit PNG holding `metres + 32768`, or decimetres).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ValueMapping {
+    pub scale: f64,
+    pub offset: f64,
+}
+
+impl Default for ValueMapping {
+    fn default() -> Self {
+        ValueMapping {
+            scale: 1.0,
+            offset: 0.0,
+        }
+    }
+}
+
+impl ValueMapping {
+    pub fn is_identity(&self) -> bool {
+        self.scale == 1.0 && self.offset == 0.0
+    }
+    pub fn to_value(&self, code: f64) -> f64 {
+        self.offset + self.scale * code
+    }
+    pub fn to_code(&self, value: f64) -> f64 {
+        (value - self.offset) / self.scale
+    }
+}
+
+/// A gridded elevation raster: `width × height` samples, row-major, row 0 = north.
+///
+/// Invariants (checked by [`Raster::validate`]): `data.len() == width * height`; when
+/// `mask` is `Some`, it has the same length and `false` marks nodata; every invalid sample
+/// holds `nodata` (or NaN when no nodata value is declared); every valid sample is finite.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Raster {
+    pub width: usize,
+    pub height: usize,
+    /// Physical values (after the value mapping), row-major.
+    pub data: Vec<f64>,
+    /// Validity mask: `None` = every sample valid; `Some(m)`: `m[i] == false` is nodata.
+    pub mask: Option<Vec<bool>>,
+    /// The nodata value the source declared (kept even when no sample uses it).
+    pub nodata: Option<f64>,
+    pub sample_type: SampleType,
+    /// Mapping between stored integer codes and physical values.
+    pub mapping: ValueMapping,
+    pub georef: Option<Georef>,
+}
+
+impl Raster {
+    /// A raster from physical values. Samples equal to `nodata`, and NaN samples, become
+    /// invalid (NaN input is treated as nodata); infinite samples are rejected.
+    pub fn from_values(
+        width: usize,
+        height: usize,
+        mut data: Vec<f64>,
+        nodata: Option<f64>,
+        sample_type: SampleType,
+    ) -> Result<Raster> {
+        if width == 0 || height == 0 {
+            return Err(Error::invalid(format!(
+                "raster size {width}x{height} is empty"
+            )));
+        }
+        let n = width
+            .checked_mul(height)
+            .ok_or_else(|| Error::limit("raster size overflows"))?;
+        if data.len() != n {
+            return Err(Error::invalid(format!(
+                "raster {width}x{height} needs {n} samples, got {}",
+                data.len()
+            )));
+        }
+        let fill = nodata.unwrap_or(f64::NAN);
+        let mut mask: Option<Vec<bool>> = None;
+        for (i, d) in data.iter_mut().enumerate() {
+            let v = *d;
+            let invalid = v.is_nan() || nodata.is_some_and(|nd| v == nd);
+            if v.is_infinite() && !nodata.is_some_and(|nd| v == nd) {
+                return Err(Error::invalid(format!(
+                    "sample {i} (row {}, col {}) is infinite",
+                    i / width,
+                    i % width
+                )));
+            }
+            if invalid {
+                mask.get_or_insert_with(|| vec![true; n])[i] = false;
+                *d = fill;
+            }
+        }
+        Ok(Raster {
+            width,
+            height,
+            data,
+            mask,
+            nodata,
+            sample_type,
+            mapping: ValueMapping::default(),
+            georef: None,
+        })
+    }
+
+    pub fn len(&self) -> usize {
+        self.width * self.height
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    #[inline]
+    pub fn is_valid(&self, i: usize) -> bool {
+        self.mask.as_ref().is_none_or(|m| m[i])
+    }
+
+    /// Number of valid samples.
+    pub fn valid_count(&self) -> usize {
+        match &self.mask {
+            None => self.len(),
+            Some(m) => m.iter().filter(|&&b| b).count(),
+        }
+    }
+
+    /// (min, max) over valid samples, `None` when there is none.
+    pub fn valid_range(&self) -> Option<(f64, f64)> {
+        let mut lo = f64::INFINITY;
+        let mut hi = f64::NEG_INFINITY;
+        for (i, &v) in self.data.iter().enumerate() {
+            if self.is_valid(i) {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+        (lo <= hi).then_some((lo, hi))
+    }
+
+    /// The value written into invalid samples: the declared nodata, else NaN.
+    pub fn fill_value(&self) -> f64 {
+        self.nodata.unwrap_or(f64::NAN)
+    }
+
+    /// The samples with every invalid one replaced by a nearby valid value (the previous
+    /// valid sample of its row, else the next; rows without any copy the nearest filled
+    /// row; all zeros when nothing is valid): a stand-in for transforms that need every
+    /// sample (FIS).
+    pub fn filled(&self) -> Vec<f64> {
+        let mut out = self.data.clone();
+        if let Some(mask) = &self.mask {
+            if !fill_invalid(&mut out, mask, self.width, self.height, |a, _, _, _| a) {
+                out.iter_mut().for_each(|v| *v = 0.0);
+            }
+        }
+        out
+    }
+
+    /// Check the invariants listed on the type.
+    pub fn validate(&self) -> Result<()> {
+        if self.width == 0 || self.height == 0 {
+            return Err(Error::invalid("raster is empty"));
+        }
+        if self.data.len() != self.width * self.height {
+            return Err(Error::invalid("raster data length does not match its size"));
+        }
+        if let Some(m) = &self.mask {
+            if m.len() != self.data.len() {
+                return Err(Error::invalid("mask length does not match raster size"));
+            }
+        }
+        for (i, &v) in self.data.iter().enumerate() {
+            if self.is_valid(i) && !v.is_finite() {
+                return Err(Error::invalid(format!("valid sample {i} is not finite")));
+            }
+        }
+        if let Some(nd) = self.nodata {
+            if nd.is_nan() {
+                return Err(Error::invalid("nodata value is NaN"));
+            }
+        }
+        Ok(())
+    }
+
+    /// Drop an all-true mask (so "no nodata" has one representation).
+    pub fn normalize_mask(&mut self) {
+        if self.mask.as_ref().is_some_and(|m| m.iter().all(|&b| b)) {
+            self.mask = None;
+        }
+    }
+}
+
+/// Default upper bound on the number of samples of a raster read from a file.
+pub const DEFAULT_MAX_SAMPLES: u64 = 1 << 28;
+
+/// Check that `width × height` samples are within `max` before allocating them.
+pub fn check_size(width: u64, height: u64, max: u64) -> Result<usize> {
+    if width == 0 || height == 0 {
+        return Err(Error::corrupt(format!(
+            "raster size {width}x{height} is empty"
+        )));
+    }
+    let n = width
+        .checked_mul(height)
+        .ok_or_else(|| Error::limit(format!("raster size {width}x{height} overflows")))?;
+    if n > max {
+        return Err(Error::limit(format!(
+            "raster of {width}x{height} = {n} samples is over the limit of {max}"
+        )));
+    }
+    usize::try_from(n).map_err(|_| Error::limit("raster too large for this platform"))
+}
+
+/// A rectangle of samples: column, row, width, height.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Window {
+    pub x: usize,
+    pub y: usize,
+    pub width: usize,
+    pub height: usize,
+}
+
+impl Window {
+    /// Parse `x,y,w,h`.
+    pub fn parse(s: &str) -> Result<Window> {
+        let v: Vec<usize> = s
+            .split(',')
+            .map(|p| p.trim().parse::<usize>())
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|_| Error::invalid(format!("window '{s}' is not x,y,width,height")))?;
+        match v[..] {
+            [x, y, width, height] => Ok(Window {
+                x,
+                y,
+                width,
+                height,
+            }),
+            _ => Err(Error::invalid(format!(
+                "window '{s}' is not x,y,width,height"
+            ))),
+        }
+    }
+
+    /// The whole of a `w × h` raster.
+    pub fn full(w: usize, h: usize) -> Window {
+        Window {
+            x: 0,
+            y: 0,
+            width: w,
+            height: h,
+        }
+    }
+}
+
+impl FromStr for Window {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        Window::parse(s)
+    }
+}
