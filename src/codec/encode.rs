@@ -95,7 +95,9 @@ pub(crate) fn encode_once(
             }
         }
         if cands.is_empty() {
-            return Err(last_err.expect("one method was tried"));
+            return Err(last_err.unwrap_or_else(|| {
+                Error::unsupported("no method of this build can meet the request")
+            }));
         }
         let i = (0..cands.len())
             .min_by_key(|&i| cands[i].enc.payload.len())

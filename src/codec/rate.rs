@@ -4,7 +4,7 @@
 use super::encode::EncodeReport;
 use super::options::EncodeOptions;
 use crate::error::{Error, Result};
-use crate::methods::Method;
+use crate::methods::{Method, REGISTRY};
 use crate::model::Raster;
 use crate::quant::ErrorBound;
 
@@ -16,10 +16,7 @@ pub(crate) fn encode_to_size(
     target: u64,
     progress: &mut dyn FnMut(f64),
 ) -> Result<(Vec<u8>, EncodeReport)> {
-    if opts.max_error.is_some()
-        || opts.params.sibson.rmse.is_some()
-        || opts.params.sibson.sites.is_some()
-    {
+    if opts.max_error.is_some() || REGISTRY.iter().any(|m| m.stops_by_itself(&opts.params)) {
         return Err(Error::invalid(
             "a size target excludes --max-error, --rmse and --sites",
         ));
@@ -35,9 +32,8 @@ pub(crate) fn encode_to_size(
     let lossless = {
         let mut l = opts.clone();
         l.target_bytes = None;
-        l.methods = vec![Method::GRID];
-        l.params.fis = Default::default();
-        l.params.haar = Default::default();
+        l.methods = Method::all().filter(|m| m.0.lossless_default()).collect();
+        l.params = Default::default();
         super::encode::encode_once(raster, &l, &mut |_| {})?
     };
     if lossless.0.len() as u64 <= target || range <= 0.0 {
@@ -74,24 +70,17 @@ pub(crate) fn encode_to_size(
         }
         Ok(best)
     }
-    if opts.methods == [Method::HAAR] {
-        // The wavelet's own rate control: the smallest coefficient step (data units) whose
-        // file fits.
-        let mut o = opts.clone();
-        o.target_bytes = None;
-        let mut try_step = |q: f64| {
-            o.params.haar.step = Some(q);
-            super::encode::encode_once(raster, &o, &mut |_| {})
-        };
-        let span = (range * 1e-6, range * 4.0);
-        return bisect(
-            span,
-            24,
-            target,
-            "the coarsest Haar step",
-            &mut try_step,
-            progress,
-        );
+    if let [m] = opts.methods[..] {
+        if let Some(knob) = m.0.rate_knob() {
+            let mut o = opts.clone();
+            o.target_bytes = None;
+            let mut try_knob = |q: f64| {
+                (knob.set)(&mut o.params, q);
+                super::encode::encode_once(raster, &o, &mut |_| {})
+            };
+            let span = (range * knob.span.0, range * knob.span.1);
+            return bisect(span, knob.steps, target, knob.what, &mut try_knob, progress);
+        }
     }
     bisect(
         (range * 1e-6, range),

@@ -73,12 +73,12 @@ impl Surface {
     }
 
     /// Add a site at integer position `p` with height `h`; returns its id.
-    pub fn insert(&mut self, p: [i64; 2], h: f64) -> crate::Result<u32> {
+    pub fn insert(&mut self, p: [i64; 2], h: f64) -> crate::error::Result<u32> {
         self.insert_near(p, h, None)
     }
 
     /// [`insert`](Self::insert) with a triangle near `p` to start the location walk from.
-    pub fn insert_near(&mut self, p: [i64; 2], h: f64, hint: Option<u32>) -> crate::Result<u32> {
+    pub fn insert_near(&mut self, p: [i64; 2], h: f64, hint: Option<u32>) -> crate::error::Result<u32> {
         let id = self.tri.insert_near(p, hint)?;
         self.heights.push(h);
         Ok(id)

@@ -4,13 +4,35 @@
 //! A method turns a raster into one section payload and back. It uses the shared rooms
 //! below it (quant, predict, geometry, entropy, container framing helpers) and never imports
 //! another method. Adding a method is a new folder with a type implementing
-//! [`Representation`] and one line in [`REGISTRY`]; the codec, `vtz info`, `vtz decode
-//! --section NAME`, `--method NAME` and `vtz rd` find it there.
+//! [`Representation`] and one line in the `registry!` below; the codec, `vtz info`, `vtz
+//! decode --section NAME`, `--method NAME` and `vtz rd` find it there.
 
-pub(crate) mod fis;
-pub(crate) mod grid;
-pub(crate) mod haar;
-pub(crate) mod sites;
+/// Declares each method's folder, its `Method` constant and its place in [`REGISTRY`] —
+/// one line per method, in the order `--method best` tries them (on equal sizes the first
+/// wins).
+macro_rules! registry {
+    ($($(#[$doc:meta])* $folder:ident: $konst:ident => $imp:ident,)*) => {
+        $(pub(crate) mod $folder;)*
+
+        /// Every method, in the order `--method best` tries them.
+        pub(crate) static REGISTRY: &[&dyn Representation] = &[$(&$folder::$imp),*];
+
+        impl Method {
+            $($(#[$doc])* pub const $konst: Method = Method(&$folder::$imp);)*
+        }
+    };
+}
+
+registry! {
+    /// Greedy Voronoi/Sibson sites (needs a bound, an RMSE or a site count).
+    sites: SIBSON => Sibson,
+    /// Every sample, predicted and quantized (lossless or within a bound).
+    grid: GRID => Grid,
+    /// 2-D Haar wavelet, quantized and range coded (the Voronoi paper's baseline).
+    haar: HAAR => Haar,
+    /// Fractal interpolation surface on every k-th sample (the fractal-interpolation paper).
+    fis: FIS => Fis,
+}
 
 pub use fis::FisOptions;
 pub use haar::HaarOptions;
@@ -22,25 +44,12 @@ use crate::model::{Raster, Window};
 use std::fmt;
 use std::str::FromStr;
 
-/// Every method, in the order `--method best` tries them (on equal sizes the first wins).
-pub(crate) static REGISTRY: &[&dyn Representation] =
-    &[&sites::Sibson, &grid::Grid, &haar::Haar, &fis::Fis];
-
 /// A representation vtz can write (one per folder of `src/methods/`): `sibson`, `grid`,
 /// `haar`, `fis`. Parse one by name with [`FromStr`]; list them with [`Method::all`].
 #[derive(Clone, Copy)]
 pub struct Method(pub(crate) &'static dyn Representation);
 
 impl Method {
-    /// Greedy Voronoi/Sibson sites (needs a bound, an RMSE or a site count).
-    pub const SIBSON: Method = Method(&sites::Sibson);
-    /// Every sample, predicted and quantized (lossless or within a bound).
-    pub const GRID: Method = Method(&grid::Grid);
-    /// 2-D Haar wavelet, quantized and range coded (the Voronoi paper's baseline).
-    pub const HAAR: Method = Method(&haar::Haar);
-    /// Fractal interpolation surface on every k-th sample (the fractal-interpolation paper).
-    pub const FIS: Method = Method(&fis::Fis);
-
     /// Every method this build knows, in the order `best` tries them.
     pub fn all() -> impl Iterator<Item = Method> {
         REGISTRY.iter().map(|&m| Method(m))
@@ -155,6 +164,16 @@ pub(crate) trait Representation: Sync {
     fn own_options(&self, _params: &MethodParams) -> Option<&'static str> {
         None
     }
+    /// Whether its own settings are a stopping rule of their own (a site count, an RMSE),
+    /// which a size target cannot be combined with.
+    fn stops_by_itself(&self, _params: &MethodParams) -> bool {
+        false
+    }
+    /// Its own rate control for a size target, when it has one (a quantizer step to
+    /// bisect); otherwise the codec bisects the max-error bound.
+    fn rate_knob(&self) -> Option<Knob> {
+        None
+    }
     /// Copy this method's own settings (and nothing else) from `from` into `to`.
     fn keep_own(&self, _from: &MethodParams, _to: &mut MethodParams) {}
     /// Whether `best` tries it for a lossless request.
@@ -251,6 +270,17 @@ pub(crate) struct DecodeJob<'a> {
     /// layer; `None` for every method today).
     #[allow(dead_code)]
     pub base: Option<&'a [f64]>,
+}
+
+/// A method's own rate control: a parameter where larger means smaller files, bisected
+/// geometrically over `span` × the value range in `steps` steps.
+pub(crate) struct Knob {
+    /// What the largest value is, for the message when even it does not fit.
+    pub what: &'static str,
+    pub span: (f64, f64),
+    pub steps: usize,
+    /// Set the parameter in the method's settings.
+    pub set: fn(&mut MethodParams, f64),
 }
 
 /// A surface evaluated on a resampled grid: values, validity, width, height.

@@ -4,7 +4,7 @@ use super::{HaarParams, decode, describe, encode, encode_step};
 use crate::container::SectionKind;
 use crate::error::Result;
 use crate::methods::{
-    DecodeJob, EncodeJob, Encoded, Identity, Method, MethodParams, Representation, StatValue, Stats,
+    DecodeJob, EncodeJob, Encoded, Identity, Knob, Method, MethodParams, Representation, StatValue, Stats,
 };
 
 /// Settings only the Haar method reads.
@@ -35,6 +35,16 @@ impl Representation for Haar {
     }
     fn keep_own(&self, from: &MethodParams, to: &mut MethodParams) {
         to.haar = from.haar.clone();
+    }
+    fn rate_knob(&self) -> Option<Knob> {
+        // The wavelet's own rate control: the smallest coefficient step (data units) whose
+        // file fits.
+        Some(Knob {
+            what: "the coarsest Haar step",
+            span: (1e-6, 4.0),
+            steps: 24,
+            set: |p, q| p.haar.step = Some(q),
+        })
     }
     fn encode(&self, job: &EncodeJob, _progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
         let (payload, bound) = match job.params.haar.step {

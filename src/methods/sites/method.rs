@@ -40,6 +40,9 @@ impl Representation for Sibson {
         (p.sibson.sites.is_some() || p.sibson.rmse.is_some())
             .then_some("--sites and --rmse need the sibson method")
     }
+    fn stops_by_itself(&self, p: &MethodParams) -> bool {
+        self.own_options(p).is_some()
+    }
     fn keep_own(&self, from: &MethodParams, to: &mut MethodParams) {
         to.sibson = from.sibson.clone();
     }
