@@ -3,7 +3,7 @@
 
 use crate::container::Header;
 use crate::error::{Error, Result};
-use crate::model::{Raster, SampleType};
+use crate::model::{Raster, SampleType, ValueMapping};
 use std::str::FromStr;
 
 /// A max-error (or RMSE) bound as the user gives it.
@@ -67,11 +67,17 @@ pub(crate) fn height_of(code: i64, step: f64, offset: f64) -> f64 {
 /// Round a surface value to what the output sample type can hold (every decoder's last
 /// step, so the encoder checks its bound on exactly these values).
 pub(crate) fn finish_value(v: f64, h: &Header) -> f64 {
-    match h.sample_type {
+    finish(v, h.sample_type, h.mapping)
+}
+
+/// [`finish_value`] for a sample type and value mapping: f32 rounding, or the nearest
+/// source code clamped to the integer type's range.
+#[inline]
+pub(crate) fn finish(v: f64, st: SampleType, m: ValueMapping) -> f64 {
+    match st {
         SampleType::F32 => v as f32 as f64,
         SampleType::F64 => v,
         st => {
-            let m = h.mapping;
             let (lo, hi) = st.int_range().expect("integer type");
             let code = ((v - m.offset) / m.scale).round().clamp(lo, hi);
             m.offset + m.scale * code

@@ -38,7 +38,7 @@ use crate::container::bytes::{ByteReader, PutLe};
 use crate::entropy::range::{Decoder, Encoder, IntModel};
 use crate::error::{Error, Result};
 use crate::model::Raster;
-use crate::quant::{Errors, finish_value};
+use crate::quant::{Errors, code_of, finish_value, height_of};
 
 /// Bit 0 of the flags byte: one scaling factor `s0` for every rectangle (no `s_ij` codes).
 const FLAG_FIXED_S: u8 = 1;
@@ -400,7 +400,7 @@ impl Model {
     fn heights(&self) -> Vec<f64> {
         self.codes
             .iter()
-            .map(|&c| self.offset + self.step * c as f64)
+            .map(|&c| height_of(c, self.step, self.offset))
             .collect()
     }
 
@@ -498,7 +498,7 @@ impl Model {
         }
         dec.finish()?;
         for &c in &codes {
-            if !(offset + step * c as f64).is_finite() || c.unsigned_abs() > 1 << 52 {
+            if !height_of(c, step, offset).is_finite() || c.unsigned_abs() > 1 << 52 {
                 return Err(Error::corrupt("fis section: a height code is out of range"));
             }
         }
@@ -537,7 +537,7 @@ fn build(
     fit_free_vertices(&g, hpad, valid, &mut z);
     let codes: Vec<i64> = z
         .iter()
-        .map(|&h| ((h - offset) / step).round() as i64)
+        .map(|&h| code_of(h, step, offset))
         .collect();
     let mut model = Model {
         g,

@@ -13,6 +13,7 @@ use crate::entropy::{self, varint};
 use crate::error::{Error, Result};
 use crate::model::{Raster, SampleType};
 use crate::predict::med::{CONTEXTS, context, predict};
+use crate::quant::height_of;
 
 const CODING_INT: u8 = 0;
 const CODING_F32: u8 = 1;
@@ -67,7 +68,7 @@ impl Dequant {
     fn value(&self, code: i64) -> Option<f64> {
         let v = match self.coding {
             CODING_INT => {
-                let v = self.offset + self.step * code as f64;
+                let v = height_of(code, self.step, self.offset);
                 if self.f32_out { v as f32 as f64 } else { v }
             }
             CODING_F32 => f32_from_key(code)? as f64,

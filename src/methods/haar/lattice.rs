@@ -1,6 +1,8 @@
-//! The value lattice: how an integer lattice code becomes an output sample.
+//! The Haar section's value lattice: a lattice code becomes an output sample through the
+//! shared lattice and output rounding of `quant`.
 
 use crate::model::{SampleType, ValueMapping};
+use crate::quant::{finish, height_of};
 
 /// How a lattice code becomes an output sample (identical in encoder and decoder).
 #[derive(Clone, Copy, Debug)]
@@ -10,43 +12,27 @@ pub(super) struct Lattice {
     pub(super) out: Output,
 }
 
+/// The output sample type and value mapping a value is rounded to.
 #[derive(Clone, Copy, Debug)]
-pub(super) enum Output {
-    F64,
-    F32,
-    /// Rounded to the nearest source code, clamped to the type's range.
-    Int {
-        mapping: ValueMapping,
-        lo: f64,
-        hi: f64,
-    },
+pub(super) struct Output {
+    st: SampleType,
+    mapping: ValueMapping,
 }
 
 impl Output {
     pub(super) fn new(st: SampleType, mapping: ValueMapping) -> Output {
-        match st.int_range() {
-            Some((lo, hi)) => Output::Int { mapping, lo, hi },
-            None if st == SampleType::F32 => Output::F32,
-            None => Output::F64,
-        }
+        Output { st, mapping }
     }
 }
 
 impl Lattice {
     #[inline]
     pub(super) fn value(&self, code: i64) -> Option<f64> {
-        let v = self.offset + self.step * code as f64;
+        let v = height_of(code, self.step, self.offset);
         if !v.is_finite() {
             return None;
         }
-        let v = match self.out {
-            Output::F64 => v,
-            Output::F32 => v as f32 as f64,
-            Output::Int { mapping, lo, hi } => {
-                let c = ((v - mapping.offset) / mapping.scale).round().clamp(lo, hi);
-                mapping.offset + mapping.scale * c
-            }
-        };
+        let v = finish(v, self.out.st, self.out.mapping);
         v.is_finite().then_some(v)
     }
 }
