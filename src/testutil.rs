@@ -1,5 +1,5 @@
 //! Test helpers shared by the unit tests (compiled only for tests): one random generator and
-//! the format modules' corpus and comparison helpers.
+//! the format modules' corpus, test-data and comparison helpers.
 
 use crate::formats::{ReadOptions, raw};
 use crate::model::Raster;
@@ -19,6 +19,27 @@ pub fn corpus() -> Option<PathBuf> {
         eprintln!("corpus not found at {}: skipping", dir.display());
         None
     }
+}
+
+/// Run `f(dir, name)` for each named corpus dataset; nothing when the corpus is absent.
+pub fn for_each_corpus(names: &[&str], mut f: impl FnMut(&Path, &str)) {
+    let Some(dir) = corpus() else { return };
+    for name in names {
+        f(&dir, name);
+    }
+}
+
+/// `n` samples `value(i)`, with a NaN hole wherever `i % every == at` (`value` is not called
+/// there).
+pub fn with_holes(
+    n: usize,
+    every: usize,
+    at: usize,
+    mut value: impl FnMut(usize) -> f64,
+) -> Vec<f64> {
+    (0..n)
+        .map(|i| if i % every == at { f64::NAN } else { value(i) })
+        .collect()
 }
 
 /// Load corpus dataset `name` from its `.f32` + `.json`.

@@ -2,8 +2,8 @@
 //!
 //! Written files hold a single f32 channel named `Y` (ZIP-compressed scan lines), invalid
 //! samples as NaN, and the custom layer attributes `vtz_nodata` (f64: the declared nodata
-//! value) and `vtz_georef` (text: the georef as the json object of the raw sidecar, see
-//! [`crate::formats::raw`]) when the raster has them.
+//! value) and `vtz_georef` (text: the georef as the shared sidecar json object, see
+//! [`crate::formats::sidecar`]) when the raster has them.
 //!
 //! Reading takes the only channel of a single-part flat image, or the first channel named
 //! `height`, `elevation`, `Z`, `Y` or `R` (case-insensitive) when there are several. f32 and
@@ -12,7 +12,8 @@
 
 use crate::error::{Error, Result};
 use crate::formats::ReadOptions;
-use crate::formats::raw::GeorefJson;
+use crate::formats::samples::f32_samples;
+use crate::formats::sidecar::GeorefJson;
 use crate::model::{Raster, SampleType, check_size};
 use exr::prelude::{
     AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image, Layer, LayerAttributes,
@@ -179,22 +180,7 @@ pub fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
 
 /// Write a raster as a single-channel f32 OpenEXR image (invalid samples as NaN).
 pub fn write(r: &Raster) -> Result<Vec<u8>> {
-    let mut samples = Vec::with_capacity(r.len());
-    for (i, &v) in r.data.iter().enumerate() {
-        if r.is_valid(i) {
-            let s = v as f32;
-            if !s.is_finite() {
-                return Err(Error::invalid(format!(
-                    "sample {i} (row {}, col {}) = {v} does not fit in float32",
-                    i / r.width,
-                    i % r.width
-                )));
-            }
-            samples.push(s);
-        } else {
-            samples.push(f32::NAN);
-        }
-    }
+    let samples = f32_samples(r, f32::NAN)?;
     let mut attrs = LayerAttributes::default();
     if let Some(nd) = r.nodata {
         attrs
@@ -371,19 +357,19 @@ mod tests {
 
     #[test]
     fn corpus_rasters() {
-        let Some(dir) = corpus() else { return };
-        for name in [
+        let names = [
             "scape_crater",
             "terra_elev_vinschgau",
             "ahn3_delft_dsm_50cm",
-        ] {
-            let mut r = load_raw(&dir, name);
+        ];
+        for_each_corpus(&names, |dir, name| {
+            let mut r = load_raw(dir, name);
             // EXR stores f32 samples: the read-back type is F32.
             r.sample_type = SampleType::F32;
             let back = read(&write(&r).unwrap(), &opts()).unwrap();
             assert_same(&r, &back);
-            assert_eq!(raster_bits(&back), raw_bits(&dir, name), "{name}");
+            assert_eq!(raster_bits(&back), raw_bits(dir, name), "{name}");
             assert_same(&back, &read(&write(&back).unwrap(), &opts()).unwrap());
-        }
+        });
     }
 }

@@ -90,14 +90,8 @@ pub fn read(bytes: &[u8], name: &str, opts: &ReadOptions) -> Result<Raster> {
         geokeys: None,
     });
     Ok(Raster {
-        width: side,
-        height: side,
-        data,
-        mask,
-        nodata: Some(nodata),
-        sample_type: SampleType::I16,
-        mapping: Default::default(),
         georef,
+        ..Raster::from_parts(side, side, data, mask, Some(nodata), SampleType::I16)
     })
 }
 
@@ -235,18 +229,18 @@ mod tests {
 
     #[test]
     fn corpus_tiles() {
-        let Some(dir) = corpus() else { return };
-        for name in [
+        let names = [
             "srtm3_N22W160_kauai",
             "srtm3_N00E010_gabon",
             "srtm3_N44W072_white_mountains",
             "srtm3_N57E011_kattegat",
-        ] {
+        ];
+        for_each_corpus(&names, |dir, name| {
             let file = format!("{name}.hgt");
             let bytes = std::fs::read(dir.join(&file)).unwrap();
             let r = read(&bytes, &file, &opts()).unwrap();
-            assert_eq!(raster_bits(&r), raw_bits(&dir, name), "{name}");
-            let raw = load_raw(&dir, name);
+            assert_eq!(raster_bits(&r), raw_bits(dir, name), "{name}");
+            let raw = load_raw(dir, name);
             assert_eq!(r.mask, raw.mask, "{name}");
             assert_eq!(r.georef, raw.georef, "{name}");
             assert_eq!(r.nodata, raw.nodata);
@@ -254,6 +248,6 @@ mod tests {
             if name.contains("kauai") {
                 assert!(r.valid_count() < r.len(), "kauai has voids");
             }
-        }
+        });
     }
 }

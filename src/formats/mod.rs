@@ -9,6 +9,8 @@ pub(crate) mod hgt;
 mod output;
 pub(crate) mod png;
 pub(crate) mod raw;
+mod samples;
+mod sidecar;
 
 use crate::error::{Error, Result};
 use crate::model::{DEFAULT_MAX_SAMPLES, Raster, SampleType};

@@ -4,14 +4,14 @@
 //! `nodata_code` marks voids (as does alpha 0 in grey+alpha PNGs). The mapping, and the
 //! georeferencing, travel in a `NAME.png.json` sidecar:
 //! `{"scale": s, "offset": o, "nodata_code": c|null, "georef": {...}|null}` (the georef
-//! object has the shape of the raw sidecar's, see [`crate::formats::raw`]).
+//! object is the shared one of [`crate::formats::sidecar`]).
 //!
 //! 8-bit RGB/RGBA PNGs are Terrain-RGB: `height = -10000 + (R·65536 + G·256 + B) · 0.1`,
 //! computed in f64 and rounded to f32; alpha 0 marks voids.
 
 use crate::error::{Error, Result};
 use crate::formats::ReadOptions;
-use crate::formats::raw::{ExactF64, GeorefJson, expect_json_object};
+use crate::formats::sidecar::{ExactF64, GeorefJson, expect_json_object};
 use crate::model::{Georef, Raster, SampleType, ValueMapping, check_size};
 use image::codecs::png::{CompressionType, FilterType, PngDecoder, PngEncoder};
 use image::{ColorType, ExtendedColorType, ImageDecoder, ImageEncoder, ImageError};
@@ -262,14 +262,8 @@ pub fn read(
             }
         }
         return Ok(Raster {
-            width,
-            height,
-            data,
-            mask,
-            nodata: None,
-            sample_type: SampleType::F32,
             mapping: TERRAIN_RGB,
-            georef: None,
+            ..Raster::from_parts(width, height, data, mask, None, SampleType::F32)
         });
     }
 
@@ -319,19 +313,14 @@ pub fn read(
             data.push(v);
         }
     }
+    let sample_type = if sixteen {
+        SampleType::U16
+    } else {
+        SampleType::U8
+    };
     Ok(Raster {
-        width,
-        height,
-        data,
-        mask,
-        nodata,
-        sample_type: if sixteen {
-            SampleType::U16
-        } else {
-            SampleType::U8
-        },
         mapping: vm,
-        georef: None,
+        ..Raster::from_parts(width, height, data, mask, nodata, sample_type)
     })
 }
 
@@ -634,15 +623,7 @@ mod tests {
     fn terrain_rgb_roundtrip() {
         let mut rng = Rng(3);
         let (w, h) = (17, 9);
-        let data: Vec<f64> = (0..w * h)
-            .map(|i| {
-                if i % 11 == 0 {
-                    f64::NAN
-                } else {
-                    trgb_value((rng.next() % 300_000) as u32)
-                }
-            })
-            .collect();
+        let data = with_holes(w * h, 11, 0, |_| trgb_value((rng.next() % 300_000) as u32));
         let mut r = Raster::from_values(w, h, data, None, SampleType::F32).unwrap();
         r.georef = Some(Georef {
             origin: [0.1, 0.2],
@@ -728,17 +709,17 @@ mod tests {
 
     #[test]
     fn corpus_scape_pngs() {
-        let Some(dir) = corpus() else { return };
-        for name in ["scape_crater", "scape_ashby", "scape_ozark"] {
+        let names = ["scape_crater", "scape_ashby", "scape_ozark"];
+        for_each_corpus(&names, |dir, name| {
             let bytes = std::fs::read(dir.join(format!("{name}.png"))).unwrap();
             let r = read(&bytes, None, false, &opts()).unwrap();
             assert_eq!(r.sample_type, SampleType::U16);
-            assert_eq!(raster_bits(&r), raw_bits(&dir, name), "{name}");
+            assert_eq!(raster_bits(&r), raw_bits(dir, name), "{name}");
             let (png, side) = write(&r, None).unwrap();
             assert!(side.is_none());
             assert_eq!(pixels(&png), pixels(&bytes), "{name}: codes differ");
             assert_same(&r, &read(&png, None, false, &opts()).unwrap());
-        }
+        });
     }
 
     #[test]

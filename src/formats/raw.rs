@@ -3,159 +3,18 @@
 //! The `.f32` file holds `width × height` little-endian `f32` values, row-major, row 0 = north,
 //! no header. The json sidecar holds `width`, `height`, `source_dtype`, `nodata`, `dx`, `dy`
 //! and, when vtz wrote it, a `georef` object and an optional `value_mapping`
-//! (`{"scale": s, "offset": o}`). The georef object (shared with the PNG sidecar and the EXR
-//! `vtz_georef` attribute) is `{"origin": [x, y], "pixel_size": [dx, dy], "raster_type":
-//! "area"|"point", "epsg": n|null, "wkt": s|null, "geokeys": {"directory": [..], "doubles":
-//! [..], "ascii": s}|null}`. A float that serde_json would not read back bit for bit from
-//! a JSON number (rare: some 17-digit values; also NaN and infinities) is written as a
-//! string holding its shortest form, so the georef round-trips exactly.
+//! (`{"scale": s, "offset": o}`). The georef object, and the exact form of its floats, are
+//! those of [`crate::formats::sidecar`] (shared with the PNG sidecar and the EXR
+//! `vtz_georef` attribute).
 //! Corpus sidecars have no `georef` object; their georeferencing is rebuilt from the
 //! free-text `origin` and `units` fields where that text is unambiguous.
 
 use crate::error::{Error, Result};
 use crate::formats::ReadOptions;
-use crate::model::{GeoKeys, Georef, Raster, RasterType, SampleType, ValueMapping, check_size};
-use serde::de::{self, Visitor};
-use serde::{Deserialize, Deserializer, Serialize, Serializer};
-use std::fmt;
-
-/// An `f64` that survives a JSON round trip bit for bit.
-///
-/// serde_json (without its `float_roundtrip` feature) may parse long decimals one ulp off, so
-/// a value is written as a JSON number only when serde_json reads that number back exactly;
-/// otherwise (and for NaN/±inf) it is written as a string in Rust's shortest round-trip form,
-/// which `str::parse` reads back exactly. Reading accepts either form.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct ExactF64(pub f64);
-
-fn json_number_roundtrips(v: f64) -> bool {
-    serde_json::to_string(&v)
-        .ok()
-        .and_then(|t| serde_json::from_str::<f64>(&t).ok())
-        .is_some_and(|b| b.to_bits() == v.to_bits())
-}
-
-impl Serialize for ExactF64 {
-    fn serialize<S: Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
-        let v = self.0;
-        if v.is_finite() && json_number_roundtrips(v) {
-            s.serialize_f64(v)
-        } else {
-            s.serialize_str(&format!("{v:?}"))
-        }
-    }
-}
-
-impl<'de> Deserialize<'de> for ExactF64 {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        struct V;
-        impl Visitor<'_> for V {
-            type Value = ExactF64;
-            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-                f.write_str("a number or a string holding a number")
-            }
-            fn visit_f64<E: de::Error>(self, v: f64) -> std::result::Result<ExactF64, E> {
-                Ok(ExactF64(v))
-            }
-            fn visit_i64<E: de::Error>(self, v: i64) -> std::result::Result<ExactF64, E> {
-                Ok(ExactF64(v as f64))
-            }
-            fn visit_u64<E: de::Error>(self, v: u64) -> std::result::Result<ExactF64, E> {
-                Ok(ExactF64(v as f64))
-            }
-            fn visit_str<E: de::Error>(self, v: &str) -> std::result::Result<ExactF64, E> {
-                v.trim()
-                    .parse::<f64>()
-                    .map(ExactF64)
-                    .map_err(|_| E::custom(format!("'{v}' is not a number")))
-            }
-        }
-        d.deserialize_any(V)
-    }
-}
-
-/// Refuse json that is not an object before handing it to serde (which would also accept a
-/// bare array for a struct).
-pub(crate) fn expect_json_object(bytes: &[u8], what: &str) -> Result<()> {
-    let first = bytes.iter().copied().find(|b| !b.is_ascii_whitespace());
-    if first != Some(b'{') {
-        return Err(Error::corrupt(format!("{what}: not a JSON object")));
-    }
-    Ok(())
-}
-
-/// JSON form of [`RasterType`].
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub(crate) enum RasterTypeJson {
-    Area,
-    Point,
-}
-
-/// JSON form of [`GeoKeys`].
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub(crate) struct GeoKeysJson {
-    pub directory: Vec<u16>,
-    pub doubles: Vec<ExactF64>,
-    pub ascii: String,
-}
-
-/// JSON form of [`Georef`], shared by the raw and PNG sidecars. Converts both ways exactly:
-/// `{"origin": [x, y], "pixel_size": [dx, dy], "raster_type": "area"|"point",
-/// "epsg": n|null, "wkt": s|null, "geokeys": {"directory": [...], "doubles": [...],
-/// "ascii": s}|null}`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub(crate) struct GeorefJson {
-    pub origin: [ExactF64; 2],
-    pub pixel_size: [ExactF64; 2],
-    pub raster_type: RasterTypeJson,
-    #[serde(default)]
-    pub epsg: Option<u32>,
-    #[serde(default)]
-    pub wkt: Option<String>,
-    #[serde(default)]
-    pub geokeys: Option<GeoKeysJson>,
-}
-
-impl From<&Georef> for GeorefJson {
-    fn from(g: &Georef) -> Self {
-        GeorefJson {
-            origin: [ExactF64(g.origin[0]), ExactF64(g.origin[1])],
-            pixel_size: [ExactF64(g.pixel_size[0]), ExactF64(g.pixel_size[1])],
-            raster_type: match g.raster_type {
-                RasterType::Area => RasterTypeJson::Area,
-                RasterType::Point => RasterTypeJson::Point,
-            },
-            epsg: g.epsg,
-            wkt: g.wkt.clone(),
-            geokeys: g.geokeys.as_ref().map(|k| GeoKeysJson {
-                directory: k.directory.clone(),
-                doubles: k.doubles.iter().map(|&d| ExactF64(d)).collect(),
-                ascii: k.ascii.clone(),
-            }),
-        }
-    }
-}
-
-impl From<GeorefJson> for Georef {
-    fn from(g: GeorefJson) -> Self {
-        Georef {
-            origin: [g.origin[0].0, g.origin[1].0],
-            pixel_size: [g.pixel_size[0].0, g.pixel_size[1].0],
-            raster_type: match g.raster_type {
-                RasterTypeJson::Area => RasterType::Area,
-                RasterTypeJson::Point => RasterType::Point,
-            },
-            epsg: g.epsg,
-            wkt: g.wkt,
-            geokeys: g.geokeys.map(|k| GeoKeys {
-                directory: k.directory,
-                doubles: k.doubles.into_iter().map(|d| d.0).collect(),
-                ascii: k.ascii,
-            }),
-        }
-    }
-}
+use crate::formats::samples::valid_f32;
+use crate::formats::sidecar::{ExactF64, GeorefJson, expect_json_object};
+use crate::model::{Georef, Raster, RasterType, SampleType, ValueMapping, check_size};
+use serde::{Deserialize, Serialize};
 
 /// JSON form of [`ValueMapping`].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -164,28 +23,20 @@ struct MappingJson {
     offset: ExactF64,
 }
 
-/// The sidecar fields the reader uses; everything else in a corpus sidecar is ignored.
-#[derive(Deserialize)]
+/// The sidecar fields the reader uses (each optional); everything else in a corpus sidecar
+/// is ignored.
+#[derive(Default, Deserialize)]
+#[serde(default)]
 struct RawJsonIn {
-    #[serde(default)]
     width: Option<serde_json::Value>,
-    #[serde(default)]
     height: Option<serde_json::Value>,
-    #[serde(default)]
     source_dtype: Option<serde_json::Value>,
-    #[serde(default)]
     nodata: Option<ExactF64>,
-    #[serde(default)]
     dx: Option<serde_json::Value>,
-    #[serde(default)]
     dy: Option<serde_json::Value>,
-    #[serde(default)]
     units: Option<serde_json::Value>,
-    #[serde(default)]
     origin: Option<serde_json::Value>,
-    #[serde(default)]
     georef: Option<GeorefJson>,
-    #[serde(default)]
     value_mapping: Option<MappingJson>,
 }
 
@@ -443,14 +294,7 @@ pub fn write(r: &Raster) -> Result<(Vec<u8>, Vec<u8>)> {
     let mut out = Vec::with_capacity(r.len() * 4);
     for (i, &v) in r.data.iter().enumerate() {
         let s = if r.is_valid(i) {
-            let s = v as f32;
-            if !s.is_finite() {
-                return Err(Error::invalid(format!(
-                    "sample {i} (row {}, col {}) = {v} does not fit in float32",
-                    i / r.width,
-                    i % r.width
-                )));
-            }
+            let s = valid_f32(r, i)?;
             if nodata32 == Some(s) {
                 return Err(Error::invalid(format!(
                     "sample {i} (row {}, col {}) = {v} equals the nodata value once rounded to float32",
@@ -487,6 +331,7 @@ pub fn write(r: &Raster) -> Result<(Vec<u8>, Vec<u8>)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::GeoKeys;
     use crate::testutil::*;
 
     fn opts() -> ReadOptions {
@@ -534,92 +379,72 @@ mod tests {
 
     #[test]
     fn origin_text() {
-        let g = georef_from_text(
-            "cell centre of row 0, col 0 = lat 23, lon -160 (NW corner of the 1x1 degree tile N22W160)",
-            "degrees (WGS84 lon/lat); elevation metres (EGM96)",
-            1.0 / 1200.0,
-            1.0 / 1200.0,
-            1201,
-        )
-        .unwrap();
-        assert_eq!(g.origin, [-160.0, 23.0]);
-        assert_eq!(g.raster_type, RasterType::Point);
-        assert_eq!(g.epsg, Some(4326));
-        let g = georef_from_text(
-            "upper-left corner x=376313.6554542635, y=3807917.8276283755 (UTM 11N)",
-            "metres (UTM zone 11N, WGS84); elevation metres",
-            30.0,
-            30.0,
-            643,
-        )
-        .unwrap();
-        assert_eq!(g.origin, [376313.6554542635, 3807917.8276283755]);
-        assert_eq!(g.raster_type, RasterType::Area);
-        assert_eq!(g.epsg, Some(32611));
-        let g = georef_from_text(
-            "upper-left corner lon -97.4849999999961, lat 32.82166666666536",
-            "degrees (WGS84 lon/lat); elevation metres",
-            0.0008333333333333,
-            0.0008333333333333,
-            359,
-        )
-        .unwrap();
-        assert_eq!(g.origin, [-97.4849999999961, 32.82166666666536]);
-        let g = georef_from_text(
-            "lower-left corner x=0.0, y=0.0",
-            "metres (local coordinates, origin 0,0)",
-            2.0,
-            2.0,
-            10,
-        )
-        .unwrap();
-        assert_eq!(g.origin, [0.0, 20.0]);
-        assert_eq!(g.epsg, None);
-        let g = georef_from_text(
-            "upper-left corner x=84808.0, y=447642.0",
-            "metres (EPSG:28992 Amersfoort / RD New); elevation metres NAP",
-            0.5,
-            0.5,
-            459,
-        )
-        .unwrap();
-        assert_eq!(g.epsg, Some(28992));
-        assert!(
-            georef_from_text(
+        // (origin text, units text, pixel size, height, the origin, raster type and EPSG code
+        // read from them)
+        type Case<'a> = (
+            &'a str,
+            &'a str,
+            f64,
+            usize,
+            Option<([f64; 2], RasterType, Option<u32>)>,
+        );
+        let cases: &[Case] = &[
+            (
+                "cell centre of row 0, col 0 = lat 23, lon -160 (NW corner of the 1x1 degree tile N22W160)",
+                "degrees (WGS84 lon/lat); elevation metres (EGM96)",
+                1.0 / 1200.0,
+                1201,
+                Some(([-160.0, 23.0], RasterType::Point, Some(4326))),
+            ),
+            (
+                "upper-left corner x=376313.6554542635, y=3807917.8276283755 (UTM 11N)",
+                "metres (UTM zone 11N, WGS84); elevation metres",
+                30.0,
+                643,
+                Some((
+                    [376313.6554542635, 3807917.8276283755],
+                    RasterType::Area,
+                    Some(32611),
+                )),
+            ),
+            (
+                "upper-left corner lon -97.4849999999961, lat 32.82166666666536",
+                "degrees (WGS84 lon/lat); elevation metres",
+                0.0008333333333333,
+                359,
+                Some((
+                    [-97.4849999999961, 32.82166666666536],
+                    RasterType::Area,
+                    Some(4326),
+                )),
+            ),
+            (
+                "lower-left corner x=0.0, y=0.0",
+                "metres (local coordinates, origin 0,0)",
+                2.0,
+                10,
+                Some(([0.0, 20.0], RasterType::Area, None)),
+            ),
+            (
+                "upper-left corner x=84808.0, y=447642.0",
+                "metres (EPSG:28992 Amersfoort / RD New); elevation metres NAP",
+                0.5,
+                459,
+                Some(([84808.0, 447642.0], RasterType::Area, Some(28992))),
+            ),
+            (
                 "NW corner approx lat 37.179392, lon -122.366765",
                 "",
                 200.0,
-                200.0,
-                540
-            )
-            .is_none()
-        );
-        assert!(georef_from_text("row 0 = first row of the STM file", "", 1.0, 1.0, 5).is_none());
-    }
-
-    #[test]
-    fn exact_f64_json() {
-        let mut rng = Rng(0x1234_5678_9abc_def1);
-        let mut vals: Vec<f64> = (0..20000).map(|_| f64::from_bits(rng.next())).collect();
-        vals.extend([
-            0.0,
-            -0.0,
-            0.016666666666666666,
-            1.0 / 3600.0,
-            -3.3999999521443642e38,
-            f64::NAN,
-            f64::INFINITY,
-            f64::MIN_POSITIVE,
-            5e-324,
-        ]);
-        for v in vals {
-            let s = serde_json::to_string(&ExactF64(v)).unwrap();
-            let back: ExactF64 = serde_json::from_str(&s).unwrap();
-            if v.is_nan() {
-                assert!(back.0.is_nan());
-            } else {
-                assert_eq!(back.0.to_bits(), v.to_bits(), "{v:?} via {s}");
-            }
+                540,
+                None,
+            ),
+            ("row 0 = first row of the STM file", "", 1.0, 5, None),
+        ];
+        for &(origin, units, d, height, want) in cases {
+            let g = georef_from_text(origin, units, d, d, height);
+            let got = g.map(|g| (g.origin, g.raster_type, g.epsg));
+            assert_eq!(got, want, "{origin}");
         }
     }
 
@@ -701,28 +526,20 @@ mod tests {
         ));
         // An integer source_dtype the values do not fit falls back to a type they fit.
         let u16_json = br#"{"width": 2, "height": 1, "source_dtype": "uint16"}"#;
-        let mut d = 1.0f32.to_le_bytes().to_vec();
-        d.extend(0.5f32.to_le_bytes());
-        assert_eq!(
-            read(&d, u16_json, &opts()).unwrap().sample_type,
-            SampleType::F32
-        );
-        let mut d = 1.0f32.to_le_bytes().to_vec();
-        d.extend((-3.0f32).to_le_bytes());
-        assert_eq!(
-            read(&d, u16_json, &opts()).unwrap().sample_type,
-            SampleType::I16
-        );
-        let mut d = 1.0f32.to_le_bytes().to_vec();
-        d.extend(1e6f32.to_le_bytes());
-        assert_eq!(
-            read(&d, u16_json, &opts()).unwrap().sample_type,
-            SampleType::I32
-        );
-        let mut d = 1.0f32.to_le_bytes().to_vec();
-        d.extend(f32::INFINITY.to_le_bytes());
+        let two = |second: f32| [1.0f32, second].map(f32::to_le_bytes).concat();
+        for (second, want) in [
+            (0.5, SampleType::F32),
+            (-3.0, SampleType::I16),
+            (1e6, SampleType::I32),
+        ] {
+            let st = read(&two(second), u16_json, &opts()).unwrap().sample_type;
+            assert_eq!(st, want, "second sample {second}");
+        }
         let ok = br#"{"width": 2, "height": 1}"#;
-        assert!(matches!(read(&d, ok, &opts()), Err(Error::Corrupt { .. })));
+        assert!(matches!(
+            read(&two(f32::INFINITY), ok, &opts()),
+            Err(Error::Corrupt { .. })
+        ));
     }
 
     #[test]

@@ -78,7 +78,12 @@ impl Surface {
     }
 
     /// [`insert`](Self::insert) with a triangle near `p` to start the location walk from.
-    pub fn insert_near(&mut self, p: [i64; 2], h: f64, hint: Option<u32>) -> crate::error::Result<u32> {
+    pub fn insert_near(
+        &mut self,
+        p: [i64; 2],
+        h: f64,
+        hint: Option<u32>,
+    ) -> crate::error::Result<u32> {
         let id = self.tri.insert_near(p, hint)?;
         self.heights.push(h);
         Ok(id)

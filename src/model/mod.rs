@@ -219,7 +219,21 @@ impl Raster {
                 *d = fill;
             }
         }
-        Ok(Raster {
+        let raster = Raster::from_parts(width, height, data, mask, nodata, sample_type);
+        Ok(raster)
+    }
+
+    /// A raster of samples a reader has decoded and masked itself (no checks, unlike
+    /// [`Raster::from_values`]), with the identity mapping and no georef.
+    pub(crate) fn from_parts(
+        width: usize,
+        height: usize,
+        data: Vec<f64>,
+        mask: Option<Vec<bool>>,
+        nodata: Option<f64>,
+        sample_type: SampleType,
+    ) -> Raster {
+        Raster {
             width,
             height,
             data,
@@ -228,7 +242,7 @@ impl Raster {
             sample_type,
             mapping: ValueMapping::default(),
             georef: None,
-        })
+        }
     }
 
     pub fn len(&self) -> usize {

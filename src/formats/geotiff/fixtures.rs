@@ -1,0 +1,214 @@
+//! Test fixtures: a hand-built classic TIFF writer, small rasters, raw tags, a bitwise comparison.
+
+use super::read;
+use super::{
+    TAG_BITS_PER_SAMPLE, TAG_COMPRESSION, TAG_IMAGE_LENGTH, TAG_IMAGE_WIDTH, TAG_PHOTOMETRIC,
+    TAG_ROWS_PER_STRIP, TAG_SAMPLE_FORMAT, TAG_SAMPLES_PER_PIXEL, TAG_STRIP_BYTE_COUNTS,
+    TAG_STRIP_OFFSETS,
+};
+use crate::error::Error;
+use crate::formats::ReadOptions;
+use crate::model::{Georef, Raster, RasterType, SampleType};
+use crate::testutil::for_each_corpus;
+use std::io::Cursor;
+use std::path::Path;
+use tiff::decoder::{Decoder, ifd::Value};
+use tiff::tags::Tag;
+
+pub(super) const CORPUS_TIFS: &[&str] = &[
+    "pysheds_dem_texas",
+    "srtm30m_bigtujunga_utm11",
+    "terra_elev_luxembourg",
+    "terra_elev_vinschgau",
+];
+
+/// Run `f(dir, name, bytes, raster)` for each of [`CORPUS_TIFS`] (nothing without the corpus).
+pub(super) fn for_each_corpus_tif(mut f: impl FnMut(&Path, &str, &[u8], Raster)) {
+    for_each_corpus(CORPUS_TIFS, |dir, name| {
+        let tif = std::fs::read(dir.join(format!("{name}.tif"))).unwrap();
+        let r = read(&tif, &opts()).unwrap_or_else(|e| panic!("{name}: {e}"));
+        f(dir, name, &tif, r);
+    });
+}
+
+pub(super) fn opts() -> ReadOptions {
+    ReadOptions::default()
+}
+
+/// Same raster, comparing floats by bits (NaN fill values included).
+pub(super) fn assert_same(a: &Raster, b: &Raster, what: &str) {
+    assert_eq!((a.width, a.height), (b.width, b.height), "{what}: size");
+    assert_eq!(a.sample_type, b.sample_type, "{what}: sample type");
+    assert_eq!(a.mask, b.mask, "{what}: mask");
+    assert_eq!(
+        a.nodata.map(f64::to_bits),
+        b.nodata.map(f64::to_bits),
+        "{what}: nodata"
+    );
+    assert_eq!(a.mapping, b.mapping, "{what}: mapping");
+    assert_eq!(a.georef, b.georef, "{what}: georef");
+    let differing = a
+        .data
+        .iter()
+        .zip(&b.data)
+        .position(|(x, y)| x.to_bits() != y.to_bits());
+    assert_eq!(differing, None, "{what}: first differing sample");
+}
+
+/// Hand-built classic TIFF: pixel data at offset 8, then the IFD, then long tag values.
+pub(super) struct Builder {
+    le: bool,
+    entries: Vec<(u16, u16, u32, Vec<u8>)>,
+}
+
+impl Builder {
+    pub(super) fn new(le: bool) -> Self {
+        Builder {
+            le,
+            entries: Vec::new(),
+        }
+    }
+    pub(super) fn set(&mut self, tag: u16, typ: u16, count: u32, bytes: Vec<u8>) -> &mut Self {
+        self.entries.retain(|e| e.0 != tag);
+        self.entries.push((tag, typ, count, bytes));
+        self
+    }
+    pub(super) fn remove(&mut self, tag: u16) -> &mut Self {
+        self.entries.retain(|e| e.0 != tag);
+        self
+    }
+    pub(super) fn short(&mut self, tag: u16, v: &[u16]) -> &mut Self {
+        let b = ordered(self.le, v, u16::to_le_bytes, u16::to_be_bytes);
+        self.set(tag, 3, v.len() as u32, b)
+    }
+    pub(super) fn long(&mut self, tag: u16, v: &[u32]) -> &mut Self {
+        let b = ordered(self.le, v, u32::to_le_bytes, u32::to_be_bytes);
+        self.set(tag, 4, v.len() as u32, b)
+    }
+    pub(super) fn double(&mut self, tag: u16, v: &[f64]) -> &mut Self {
+        let b = ordered(self.le, v, f64::to_le_bytes, f64::to_be_bytes);
+        self.set(tag, 12, v.len() as u32, b)
+    }
+    pub(super) fn ascii(&mut self, tag: u16, s: &str) -> &mut Self {
+        let mut b = s.as_bytes().to_vec();
+        b.push(0);
+        let n = b.len() as u32;
+        self.set(tag, 2, n, b)
+    }
+    /// The usual tags of a single-strip, uncompressed, single-band image.
+    pub(super) fn basic(le: bool, w: u32, h: u32, bits: u16, format: u16, data_len: usize) -> Self {
+        let mut b = Builder::new(le);
+        b.long(TAG_IMAGE_WIDTH, &[w])
+            .long(TAG_IMAGE_LENGTH, &[h])
+            .short(TAG_BITS_PER_SAMPLE, &[bits])
+            .short(TAG_COMPRESSION, &[1])
+            .short(TAG_PHOTOMETRIC, &[1])
+            .long(TAG_STRIP_OFFSETS, &[8])
+            .short(TAG_SAMPLES_PER_PIXEL, &[1])
+            .long(TAG_ROWS_PER_STRIP, &[h])
+            .long(TAG_STRIP_BYTE_COUNTS, &[data_len as u32])
+            .short(TAG_SAMPLE_FORMAT, &[format]);
+        b
+    }
+    pub(super) fn build(&self, data: &[u8]) -> Vec<u8> {
+        let le = self.le;
+        let u16b = |v: u16| if le { v.to_le_bytes() } else { v.to_be_bytes() };
+        let u32b = |v: u32| if le { v.to_le_bytes() } else { v.to_be_bytes() };
+        let mut entries = self.entries.clone();
+        entries.sort_by_key(|e| e.0);
+        let ifd = (8 + data.len() + data.len() % 2) as u32;
+        let mut extra_at = ifd + 2 + 12 * entries.len() as u32 + 4;
+        let mut out = Vec::new();
+        out.extend_from_slice(if le { b"II" } else { b"MM" });
+        out.extend_from_slice(&u16b(42));
+        out.extend_from_slice(&u32b(ifd));
+        out.extend_from_slice(data);
+        out.resize(ifd as usize, 0);
+        out.extend_from_slice(&u16b(entries.len() as u16));
+        let mut extra = Vec::new();
+        for (tag, typ, count, bytes) in &entries {
+            out.extend_from_slice(&u16b(*tag));
+            out.extend_from_slice(&u16b(*typ));
+            out.extend_from_slice(&u32b(*count));
+            if bytes.len() <= 4 {
+                let mut field = bytes.clone();
+                field.resize(4, 0);
+                out.extend_from_slice(&field);
+            } else {
+                out.extend_from_slice(&u32b(extra_at));
+                extra.extend_from_slice(bytes);
+                if bytes.len() % 2 == 1 {
+                    extra.push(0);
+                }
+                extra_at = ifd + 2 + 12 * entries.len() as u32 + 4 + extra.len() as u32;
+            }
+        }
+        out.extend_from_slice(&u32b(0));
+        out.extend_from_slice(&extra);
+        out
+    }
+}
+
+/// Values as bytes in the given byte order (little-endian when `le`).
+fn ordered<T: Copy, const N: usize>(
+    le: bool,
+    v: &[T],
+    to_le: fn(T) -> [u8; N],
+    to_be: fn(T) -> [u8; N],
+) -> Vec<u8> {
+    v.iter()
+        .flat_map(|&x| if le { to_le(x) } else { to_be(x) })
+        .collect()
+}
+
+pub(super) fn i16_bytes(le: bool, v: &[i16]) -> Vec<u8> {
+    ordered(le, v, i16::to_le_bytes, i16::to_be_bytes)
+}
+
+pub(super) fn small_georef(epsg: Option<u32>) -> Georef {
+    Georef {
+        origin: [500000.0, 4649776.5],
+        pixel_size: [30.0, 30.0],
+        raster_type: RasterType::Area,
+        epsg,
+        wkt: None,
+        geokeys: None,
+    }
+}
+
+/// A small int16 raster with a georef, nodata and a few invalid samples.
+pub(super) fn small_i16_raster() -> Raster {
+    let (w, h) = (23, 17);
+    let mut data: Vec<f64> = (0..w * h)
+        .map(|i| ((i * 37) % 1000) as f64 - 200.0)
+        .collect();
+    data[5] = -9999.0;
+    data[100] = -9999.0;
+    let mut r = Raster::from_values(w, h, data, Some(-9999.0), SampleType::I16).unwrap();
+    r.georef = Some(small_georef(Some(32611)));
+    r
+}
+
+pub(super) fn is_unsupported(e: &Error) -> bool {
+    matches!(e, Error::Unsupported { .. })
+}
+
+pub(super) fn raw_tag(bytes: &[u8], tag: Tag) -> Option<Value> {
+    let mut d = Decoder::new(Cursor::new(bytes)).unwrap();
+    d.find_tag(tag).unwrap()
+}
+
+/// Forward TIFF floating-point predictor (3) on one row of float32 samples.
+pub(super) fn fp_predict_row(row: &[f32]) -> Vec<u8> {
+    let n = row.len();
+    let mut s = vec![0u8; n * 4];
+    for (i, v) in row.iter().enumerate() {
+        for (k, byte) in v.to_be_bytes().into_iter().enumerate() {
+            s[k * n + i] = byte;
+        }
+    }
+    for i in (1..s.len()).rev() {
+        s[i] = s[i].wrapping_sub(s[i - 1]);
+    }
+    s
+}
