@@ -1,6 +1,6 @@
 //! Raster file formats: one file per format, each reading into a [`Raster`] and writing from
-//! one; sidecars and atomic output beside them. The `.vtz` container is not a format here:
-//! the codec reads and writes it (`vtz::read_path`).
+//! one; sidecars and atomic output beside them. Callers reach them through `vtz::read_path`
+//! and `vtz::write_path` (the codec), which also read and write `.vtz`.
 
 pub(crate) mod asc;
 pub(crate) mod exr;
@@ -14,7 +14,8 @@ mod sidecar;
 
 use crate::error::{Error, Result};
 use crate::model::{DEFAULT_MAX_SAMPLES, Raster, SampleType};
-pub use output::{OutputFile, write_file, write_files};
+pub use output::write_file;
+pub(crate) use output::OutputFile;
 pub use png::PngMapping;
 use std::path::Path;
 
@@ -113,7 +114,7 @@ pub struct WriteOptions {
 }
 
 /// Read a raster file, choosing the format by extension unless `opts.format` says.
-pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
+pub(crate) fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
     let format = match opts.format {
         Some(f) => f,
         None => Format::from_path(path)?,
@@ -157,7 +158,7 @@ pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
 
 /// Encode a raster into the files `path` needs (the file itself plus any sidecar), without
 /// touching the file system.
-pub fn encode_path(raster: &Raster, path: &Path, opts: &WriteOptions) -> Result<Vec<OutputFile>> {
+pub(crate) fn encode_path(raster: &Raster, path: &Path, opts: &WriteOptions) -> Result<Vec<OutputFile>> {
     raster.validate()?;
     let format = match opts.format {
         Some(f) => f,
@@ -213,7 +214,7 @@ pub fn encode_path(raster: &Raster, path: &Path, opts: &WriteOptions) -> Result<
 }
 
 /// Write a raster file (and its sidecar), atomically: see [`output::write_files`].
-pub fn write_path(raster: &Raster, path: &Path, opts: &WriteOptions) -> Result<()> {
+pub(crate) fn write_path(raster: &Raster, path: &Path, opts: &WriteOptions) -> Result<()> {
     let files = encode_path(raster, path, opts)?;
     output::write_files(&files, opts.force)
 }

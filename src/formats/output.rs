@@ -66,7 +66,8 @@ pub fn write_files(files: &[OutputFile], force: bool) -> Result<()> {
     Ok(())
 }
 
-/// Write one file atomically (see [`write_files`]).
+/// Write one file atomically: refuse an existing file unless `force`, write a temporary
+/// sibling, sync it, rename it into place; on failure nothing is left half-written.
 pub fn write_file(path: &Path, bytes: Vec<u8>, force: bool) -> Result<()> {
     write_files(
         &[OutputFile {
