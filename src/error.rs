@@ -13,41 +13,59 @@ pub enum Error {
     Io {
         /// What was being done, e.g. the path.
         context: String,
+        /// The operating system's error.
         source: std::io::Error,
     },
     /// The input bytes are not valid: truncated, corrupted, checksum mismatch, out-of-range
     /// metadata. `what` names the place (file, section, field).
     #[error("corrupt input: {what}")]
-    Corrupt { what: String },
+    Corrupt {
+        /// What is wrong, and where.
+        what: String,
+    },
     /// The input is well-formed but uses a variant vtz does not implement (a 3-band TIFF,
     /// an unknown required section, a newer format version).
     #[error("unsupported: {what}")]
-    Unsupported { what: String },
+    Unsupported {
+        /// What is not supported.
+        what: String,
+    },
     /// The caller asked for something impossible or inconsistent (a negative error bound,
     /// a window outside the raster, an unknown format name).
     #[error("invalid argument: {what}")]
-    InvalidArgument { what: String },
+    InvalidArgument {
+        /// What is wrong with the request.
+        what: String,
+    },
     /// The input would need more memory or work than the configured limits allow.
     #[error("limit exceeded: {what}")]
-    LimitExceeded { what: String },
+    LimitExceeded {
+        /// What would exceed which limit.
+        what: String,
+    },
 }
 
 /// Short alias used throughout the crate.
 pub type Result<T> = std::result::Result<T, Error>;
 
 impl Error {
+    /// An [`Error::Corrupt`].
     pub fn corrupt(what: impl Into<String>) -> Self {
         Error::Corrupt { what: what.into() }
     }
+    /// An [`Error::Unsupported`].
     pub fn unsupported(what: impl Into<String>) -> Self {
         Error::Unsupported { what: what.into() }
     }
+    /// An [`Error::InvalidArgument`].
     pub fn invalid(what: impl Into<String>) -> Self {
         Error::InvalidArgument { what: what.into() }
     }
+    /// An [`Error::LimitExceeded`].
     pub fn limit(what: impl Into<String>) -> Self {
         Error::LimitExceeded { what: what.into() }
     }
+    /// An [`Error::Io`] while doing `context`.
     pub fn io(context: impl Into<String>, source: std::io::Error) -> Self {
         Error::Io {
             context: context.into(),

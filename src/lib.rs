@@ -24,6 +24,7 @@
 //! [`decode`] are the easy path; [`Encoder`] and [`Decoder`] take options, [`Limits`],
 //! windows, typed buffers and readers.
 #![forbid(unsafe_code)]
+#![warn(missing_docs)]
 
 mod codec;
 mod container;

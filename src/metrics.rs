@@ -8,7 +8,9 @@ use serde::Serialize;
 /// How far a reconstruction is from a reference, over the reference's valid samples.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Comparison {
+    /// Raster width.
     pub width: usize,
+    /// Raster height.
     pub height: usize,
     /// Samples valid in the reference.
     pub valid: usize,
@@ -16,12 +18,17 @@ pub struct Comparison {
     pub lost: usize,
     /// Samples nodata in the reference but valid in the other raster.
     pub invented: usize,
+    /// Largest absolute difference over samples valid in both.
     pub max_error: f64,
+    /// Root mean square difference over samples valid in both.
     pub rmse: f64,
+    /// Mean absolute difference over samples valid in both.
     pub mean_abs_error: f64,
     /// max − min of the reference's valid samples.
     pub range: f64,
+    /// `max_error` in % of the reference's value range.
     pub max_error_pct: f64,
+    /// `rmse` in % of the reference's value range.
     pub rmse_pct: f64,
     /// 20·log10(range / rmse), infinite when identical.
     pub psnr_db: f64,

@@ -10,7 +10,7 @@ mod rate;
 pub use encode::EncodeReport;
 pub use options::{DecodeOptions, EncodeOptions, Scale, SectionChoice};
 
-use crate::container::{ContainerReader, Limits, SF_REQUIRED, SectionKind};
+use crate::container::{ContainerReader, Limits, SF_REQUIRED};
 use crate::error::{Error, Result};
 use crate::formats::{self, Format, ReadOptions, WriteOptions};
 use crate::methods::{self, DecodeJob, Method, Site, Stats};
@@ -171,9 +171,13 @@ impl Encoder {
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
 pub struct FileInfo {
+    /// Bytes of the whole file.
     pub file_bytes: u64,
+    /// Raster width in samples.
     pub width: u32,
+    /// Raster height in samples.
     pub height: u32,
+    /// The sample type a decode gives back.
     pub sample_type: SampleType,
     /// How stored integer codes map to values.
     pub mapping: ValueMapping,
@@ -181,9 +185,11 @@ pub struct FileInfo {
     pub nodata: Option<f64>,
     /// The range (min, max) of the valid samples.
     pub range: Option<(f64, f64)>,
+    /// Where the raster sits, when the source said.
     pub georef: Option<Georef>,
     /// The index of the primary section.
     pub primary: usize,
+    /// The section directory, in file order.
     pub sections: Vec<SectionInfo>,
 }
 
@@ -198,6 +204,7 @@ impl FileInfo {
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
 pub struct SectionInfo {
+    /// Its index in the directory (what `--section N` takes).
     pub index: usize,
     /// The type's name: a method's, `mask`, `metadata`, or `unknown-N`.
     pub name: String,
@@ -205,9 +212,13 @@ pub struct SectionInfo {
     pub code: u16,
     /// The method that wrote it, for representation sections this build knows.
     pub method: Option<Method>,
+    /// A decoder that does not know the type must reject the file.
     pub required: bool,
+    /// The section a plain decode reads.
     pub primary: bool,
+    /// Byte offset of the payload in the file.
     pub offset: u64,
+    /// Payload length in bytes.
     pub bytes: u64,
 }
 
@@ -384,15 +395,6 @@ impl<R: Read + Seek> Decoder<R> {
             base: None,
         };
         f(&job).map(Some)
-    }
-
-    /// The payload of the first section of `kind`, checksum verified (`None` when absent).
-    #[doc(hidden)]
-    pub fn section_payload(&mut self, kind: SectionKind) -> Result<Option<Vec<u8>>> {
-        match self.rd.find(kind) {
-            Some(i) => self.rd.read_section(i).map(Some),
-            None => Ok(None),
-        }
     }
 }
 

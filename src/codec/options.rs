@@ -32,7 +32,9 @@ pub struct EncodeOptions {
 /// A resampling factor `num/den` (2/1 doubles the resolution, 1/4 quarters it).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Scale {
+    /// Numerator: output samples per `den` source samples.
     pub num: u32,
+    /// Denominator.
     pub den: u32,
 }
 
@@ -102,6 +104,7 @@ impl FromStr for SectionChoice {
 #[derive(Clone, Debug, Default)]
 #[non_exhaustive]
 pub struct DecodeOptions {
+    /// Limits on everything the file or an option would allocate.
     pub limits: Limits,
     /// Decode this section instead of the primary one.
     pub section: SectionChoice,

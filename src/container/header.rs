@@ -15,15 +15,21 @@ const HF_KNOWN: u8 = HF_NODATA | HF_GEOREF | HF_RANGE;
 /// What every section of a file shares: the raster's shape and meaning.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Header {
+    /// Raster width in samples.
     pub width: u32,
+    /// Raster height in samples.
     pub height: u32,
+    /// The source's sample type.
     pub sample_type: SampleType,
     /// Index (in the section directory) of the section that `decode` uses by default.
     pub primary: u16,
+    /// Code ↔ value mapping.
     pub mapping: ValueMapping,
+    /// The declared nodata value.
     pub nodata: Option<f64>,
     /// (min, max) over the source's valid samples; `None` when it has no valid sample.
     pub range: Option<(f64, f64)>,
+    /// Georeferencing, when present.
     pub georef: Option<Georef>,
 }
 
@@ -48,6 +54,7 @@ impl Header {
         })
     }
 
+    /// Samples (width × height).
     pub fn samples(&self) -> u64 {
         self.width as u64 * self.height as u64
     }

@@ -38,9 +38,11 @@ impl SectionKind {
     /// Free-form UTF-8 JSON metadata.
     pub const METADATA: SectionKind = SectionKind(7);
 
+    /// The type code as stored.
     pub fn code(self) -> u16 {
         self.0
     }
+    /// The type of a stored code.
     pub fn from_code(c: u16) -> SectionKind {
         SectionKind(c)
     }
@@ -71,20 +73,28 @@ pub fn kind_name(k: SectionKind, names: KindNames) -> String {
 /// A section as it is written: its kind, flags and payload.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Section {
+    /// Its type.
     pub kind: SectionKind,
+    /// Its flags ([`SF_REQUIRED`]).
     pub flags: u16,
+    /// Its bytes.
     pub payload: Vec<u8>,
 }
 
 /// A directory entry as read: where a section is and how to check it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SectionEntry {
+    /// Its type.
     pub kind: SectionKind,
     /// The type's name (`unknown-N` for a type this decoder does not know).
     pub name: String,
+    /// Its flags ([`SF_REQUIRED`]).
     pub flags: u16,
+    /// CRC-32 of the payload.
     pub crc: u32,
+    /// Byte offset of the payload in the file.
     pub offset: u64,
+    /// Payload length in bytes.
     pub length: u64,
 }
 

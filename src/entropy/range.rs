@@ -133,6 +133,7 @@ impl Default for Encoder {
 }
 
 impl Encoder {
+    /// An empty coder.
     pub fn new() -> Self {
         Self::with_capacity(0)
     }
@@ -478,11 +479,13 @@ pub struct IntModel {
 }
 
 impl IntModel {
+    /// A fresh model.
     pub fn new() -> Self {
         Self::default()
     }
 
     #[inline]
+    /// Code `v`.
     pub fn encode(&mut self, enc: &mut Encoder, v: i64) {
         enc.encode(&mut self.zero, v == 0);
         if v != 0 {

@@ -14,8 +14,8 @@ mod sidecar;
 
 use crate::error::{Error, Result};
 use crate::model::{DEFAULT_MAX_SAMPLES, Raster, SampleType};
-pub use output::write_file;
 pub(crate) use output::OutputFile;
+pub use output::write_file;
 pub use png::PngMapping;
 use std::path::Path;
 
@@ -71,6 +71,7 @@ impl Format {
         })
     }
 
+    /// The format's name for people.
     pub fn name(self) -> &'static str {
         match self {
             Format::GeoTiff => "GeoTIFF",
@@ -97,6 +98,7 @@ pub struct ReadOptions {
 }
 
 impl ReadOptions {
+    /// The sample limit in force.
     pub fn max_samples(&self) -> u64 {
         self.max_samples.unwrap_or(DEFAULT_MAX_SAMPLES)
     }
@@ -158,7 +160,11 @@ pub(crate) fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
 
 /// Encode a raster into the files `path` needs (the file itself plus any sidecar), without
 /// touching the file system.
-pub(crate) fn encode_path(raster: &Raster, path: &Path, opts: &WriteOptions) -> Result<Vec<OutputFile>> {
+pub(crate) fn encode_path(
+    raster: &Raster,
+    path: &Path,
+    opts: &WriteOptions,
+) -> Result<Vec<OutputFile>> {
     raster.validate()?;
     let format = match opts.format {
         Some(f) => f,

@@ -22,8 +22,11 @@ use std::path::{Path, PathBuf};
 /// Value mapping of a 16-bit PNG: value = offset + scale * code; `nodata_code` marks voids.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PngMapping {
+    /// Value per code step.
     pub scale: f64,
+    /// Value of code 0.
     pub offset: f64,
+    /// The code that marks nodata, if any.
     pub nodata_code: Option<u16>,
 }
 

@@ -125,8 +125,11 @@ impl fmt::Display for Method {
 #[derive(Clone, Debug, Default, PartialEq)]
 #[non_exhaustive]
 pub struct MethodParams {
+    /// Settings of the Sibson method.
     pub sibson: sites::SibsonOptions,
+    /// Settings of the FIS method.
     pub fis: fis::FisOptions,
+    /// Settings of the Haar method.
     pub haar: haar::HaarOptions,
 }
 
@@ -302,8 +305,11 @@ pub struct Stats {
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
 pub enum StatValue {
+    /// A count.
     Count(u64),
+    /// A measured number.
     Number(f64),
+    /// A list of counts (e.g. sites per level).
     Counts(Vec<u64>),
 }
 
@@ -337,7 +343,9 @@ pub struct Site {
     pub rank: usize,
     /// The progressive level it belongs to.
     pub level: usize,
+    /// Column of the sample it sits on.
     pub col: usize,
+    /// Row of the sample it sits on (0 = north).
     pub row: usize,
     /// The stored (quantized) height.
     pub height: f64,

@@ -12,11 +12,17 @@ pub(crate) use fill::fill_invalid;
 /// every type listed), and writers convert back to this type.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum SampleType {
+    /// Unsigned 8-bit integers.
     U8,
+    /// Signed 16-bit integers (SRTM, most DEM GeoTIFFs).
     I16,
+    /// Unsigned 16-bit integers (16-bit PNG height maps).
     U16,
+    /// Signed 32-bit integers.
     I32,
+    /// 32-bit floats.
     F32,
+    /// 64-bit floats.
     F64,
 }
 
@@ -32,6 +38,7 @@ impl SampleType {
             SampleType::F64 => 5,
         }
     }
+    /// The type of an on-disk code, if it is one.
     pub fn from_code(c: u8) -> Option<Self> {
         Some(match c {
             0 => SampleType::U8,
@@ -43,6 +50,7 @@ impl SampleType {
             _ => return None,
         })
     }
+    /// The type's short name (`i16`, `f32`, …).
     pub fn name(self) -> &'static str {
         match self {
             SampleType::U8 => "u8",
@@ -62,6 +70,7 @@ impl SampleType {
             SampleType::F64 => 64,
         }
     }
+    /// Whether the type holds integers.
     pub fn is_integer(self) -> bool {
         matches!(
             self,
@@ -84,7 +93,9 @@ impl SampleType {
 /// its centre (`PixelIsPoint`, e.g. SRTM `.hgt` posts).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum RasterType {
+    /// A value describes the whole cell (GeoTIFF `PixelIsArea`).
     Area,
+    /// A value describes the point at the cell's centre (`PixelIsPoint`).
     Point,
 }
 
@@ -108,6 +119,7 @@ pub struct Georef {
     pub origin: [f64; 2],
     /// Pixel size along x (to the east) and y (to the south), positive for north-up rasters.
     pub pixel_size: [f64; 2],
+    /// Whether a pixel is an area or the point at its centre.
     pub raster_type: RasterType,
     /// EPSG code of the CRS when known.
     pub epsg: Option<u32>,
@@ -132,7 +144,9 @@ impl Georef {
 /// (e.g. a 16-bit PNG holding `metres + 32768`, or decimetres).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ValueMapping {
+    /// Value per code step.
     pub scale: f64,
+    /// Value of code 0.
     pub offset: f64,
 }
 
@@ -146,12 +160,15 @@ impl Default for ValueMapping {
 }
 
 impl ValueMapping {
+    /// Whether codes are the values themselves.
     pub fn is_identity(&self) -> bool {
         self.scale == 1.0 && self.offset == 0.0
     }
+    /// The value of a code.
     pub fn to_value(&self, code: f64) -> f64 {
         self.offset + self.scale * code
     }
+    /// The (fractional) code of a value.
     pub fn to_code(&self, value: f64) -> f64 {
         (value - self.offset) / self.scale
     }
@@ -164,7 +181,9 @@ impl ValueMapping {
 /// holds `nodata` (or NaN when no nodata value is declared); every valid sample is finite.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Raster {
+    /// Samples per row.
     pub width: usize,
+    /// Rows.
     pub height: usize,
     /// Physical values (after the value mapping), row-major.
     pub data: Vec<f64>,
@@ -172,9 +191,11 @@ pub struct Raster {
     pub mask: Option<Vec<bool>>,
     /// The nodata value the source declared (kept even when no sample uses it).
     pub nodata: Option<f64>,
+    /// The type the source stored samples in (decoders give this type back).
     pub sample_type: SampleType,
     /// Mapping between stored integer codes and physical values.
     pub mapping: ValueMapping,
+    /// Where the raster sits, when the source said.
     pub georef: Option<Georef>,
 }
 
@@ -245,14 +266,17 @@ impl Raster {
         }
     }
 
+    /// Samples (width × height).
     pub fn len(&self) -> usize {
         self.width * self.height
     }
+    /// Whether the raster has no samples (never, for a valid raster).
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
 
     #[inline]
+    /// Whether sample `i` holds data (not nodata).
     pub fn is_valid(&self, i: usize) -> bool {
         self.mask.as_ref().is_none_or(|m| m[i])
     }
@@ -355,9 +379,13 @@ pub fn check_size(width: u64, height: u64, max: u64) -> Result<usize> {
 /// A rectangle of samples: column, row, width, height.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Window {
+    /// First column.
     pub x: usize,
+    /// First row.
     pub y: usize,
+    /// Columns.
     pub width: usize,
+    /// Rows.
     pub height: usize,
 }
 

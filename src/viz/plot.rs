@@ -21,14 +21,19 @@ static FONT: &[u8] = include_bytes!(concat!(
 /// One point of a curve: bits per sample, max error and RMSE in % of the value range.
 #[derive(Clone, Copy, Debug)]
 pub struct Point {
+    /// Bits per sample.
     pub bps: f64,
+    /// Max error in % of the value range.
     pub max_pct: f64,
+    /// RMSE in % of the value range.
     pub rmse_pct: f64,
 }
 
 /// The curves of one raster, one per method (in the order to draw and list them).
 pub struct Raster {
+    /// The raster's name (a panel title).
     pub name: String,
+    /// One curve per method: its name and its points.
     pub series: Vec<(String, Vec<Point>)>,
     /// Requested bounds in % of the range, drawn as faint lines on the max-error panel.
     pub bounds_pct: Vec<f64>,
