@@ -6,9 +6,9 @@ use crate::model::Raster;
 use std::path::{Path, PathBuf};
 
 // The one test generator, shared with the integration tests and the benches.
-#[path = "../tests/common/rng.rs"]
-mod rng;
-pub use rng::Rng;
+#[path = "../tests/common/shared.rs"]
+mod shared;
+pub use shared::{Rng, assert_same};
 
 /// The shared corpus directory, or `None` (with a message) when it is absent.
 pub fn corpus() -> Option<PathBuf> {
@@ -60,26 +60,4 @@ pub fn raw_bits(dir: &Path, name: &str) -> Vec<u32> {
 /// The raster's samples as f32 bits (invalid samples as the f32 of their fill value).
 pub fn raster_bits(r: &Raster) -> Vec<u32> {
     r.data.iter().map(|&v| (v as f32).to_bits()).collect()
-}
-
-/// Bit-exact equality of two rasters' values, masks, nodata, types and georefs.
-pub fn assert_same(a: &Raster, b: &Raster) {
-    assert_eq!((a.width, a.height), (b.width, b.height));
-    assert_eq!(a.mask, b.mask, "masks differ");
-    assert_eq!(
-        a.nodata.map(f64::to_bits),
-        b.nodata.map(f64::to_bits),
-        "nodata differs"
-    );
-    assert_eq!(a.sample_type, b.sample_type);
-    assert_eq!(a.georef, b.georef);
-    for i in 0..a.len() {
-        if a.is_valid(i) {
-            assert_eq!(
-                a.data[i].to_bits(),
-                b.data[i].to_bits(),
-                "sample {i} differs"
-            );
-        }
-    }
 }

@@ -386,7 +386,7 @@ mod tests {
         assert_eq!(g.raster_type, RasterType::Point);
         assert_eq!(g.origin, [10.5, -2.5]);
         let back = read(&write(&r).unwrap(), &opts()).unwrap();
-        assert_same(&r, &back);
+        assert_same(&r, &back, "asc round trip");
     }
 
     #[test]
@@ -461,7 +461,7 @@ mod tests {
             }
             assert_eq!(r1.georef, r.georef, "case {case}");
             let r2 = read(&write(&r1).unwrap(), &opts()).unwrap();
-            assert_same(&r1, &r2);
+            assert_same(&r1, &r2, "asc round trip");
         }
     }
 
@@ -547,7 +547,7 @@ mod tests {
             assert_eq!(g.epsg, None);
             let w = write(&r).unwrap();
             let back = read(&w, &opts()).unwrap();
-            assert_same(&r, &back);
+            assert_same(&r, &back, "asc round trip");
             assert_eq!(write(&back).unwrap(), w);
         }
     }

@@ -276,8 +276,12 @@ mod tests {
             assert!(r.valid_count() < r.len());
             let b = write(&r).unwrap();
             let back = read(&b, &opts()).unwrap();
-            assert_same(&r, &back);
-            assert_same(&back, &read(&write(&back).unwrap(), &opts()).unwrap());
+            assert_same(&r, &back, "exr round trip");
+            assert_same(
+                &back,
+                &read(&write(&back).unwrap(), &opts()).unwrap(),
+                "exr round trip",
+            );
         }
     }
 
@@ -367,9 +371,13 @@ mod tests {
             // EXR stores f32 samples: the read-back type is F32.
             r.sample_type = SampleType::F32;
             let back = read(&write(&r).unwrap(), &opts()).unwrap();
-            assert_same(&r, &back);
+            assert_same(&r, &back, "exr round trip");
             assert_eq!(raster_bits(&back), raw_bits(dir, name), "{name}");
-            assert_same(&back, &read(&write(&back).unwrap(), &opts()).unwrap());
+            assert_same(
+                &back,
+                &read(&write(&back).unwrap(), &opts()).unwrap(),
+                "exr round trip",
+            );
         });
     }
 }

@@ -562,7 +562,7 @@ mod tests {
         assert_eq!(s.mapping, m);
         assert!(s.georef.is_none());
         let back = read(&out, Some(&s.mapping), false, &opts()).unwrap();
-        assert_same(&r, &back);
+        assert_same(&r, &back, "png round trip");
         // Forcing Terrain-RGB on a grey PNG is refused.
         assert!(matches!(
             read(&png, None, true, &opts()),
@@ -576,13 +576,21 @@ mod tests {
             Raster::from_values(2, 2, vec![1.0, 2.0, 3.0, 65535.0], None, SampleType::U16).unwrap();
         let (png, side) = write(&r, None).unwrap();
         assert!(side.is_none());
-        assert_same(&r, &read(&png, None, false, &opts()).unwrap());
+        assert_same(
+            &r,
+            &read(&png, None, false, &opts()).unwrap(),
+            "png round trip",
+        );
         // u8 rasters are written as 8-bit grey and read back as u8.
         let r = Raster::from_values(2, 1, vec![0.0, 255.0], None, SampleType::U8).unwrap();
         let (png, side) = write(&r, None).unwrap();
         assert!(side.is_none());
         assert_eq!(pixels(&png).0, ColorType::L8);
-        assert_same(&r, &read(&png, None, false, &opts()).unwrap());
+        assert_same(
+            &r,
+            &read(&png, None, false, &opts()).unwrap(),
+            "png round trip",
+        );
     }
 
     #[test]
@@ -641,7 +649,7 @@ mod tests {
         let mut back = read(&png, None, false, &opts()).unwrap();
         assert_eq!(back.mapping, TERRAIN_RGB);
         back.georef = s.georef;
-        assert_same(&r, &back);
+        assert_same(&r, &back, "png round trip");
         let r = Raster::from_values(1, 1, vec![-10000.1], None, SampleType::F32).unwrap();
         assert!(matches!(
             write_terrain_rgb(&r),
@@ -721,7 +729,11 @@ mod tests {
             let (png, side) = write(&r, None).unwrap();
             assert!(side.is_none());
             assert_eq!(pixels(&png), pixels(&bytes), "{name}: codes differ");
-            assert_same(&r, &read(&png, None, false, &opts()).unwrap());
+            assert_same(
+                &r,
+                &read(&png, None, false, &opts()).unwrap(),
+                "png round trip",
+            );
         });
     }
 
@@ -757,7 +769,7 @@ mod tests {
         assert_eq!(side.mapping, m);
         assert_eq!(side.georef, r.georef);
         let back = read_path(&out, &ReadOptions::default()).unwrap();
-        assert_same(&r, &back);
+        assert_same(&r, &back, "png round trip");
         assert_eq!(back.mapping, r.mapping);
         let orig = std::fs::read(&src).unwrap();
         assert_eq!(pixels(&std::fs::read(&out).unwrap()), pixels(&orig));
@@ -777,11 +789,11 @@ mod tests {
             format: Some(Format::TerrainRgb),
             ..Default::default()
         };
-        assert_same(&r, &read_path(&src, &forced).unwrap());
+        assert_same(&r, &read_path(&src, &forced).unwrap(), "png round trip");
         let (png, side) = write_terrain_rgb(&r).unwrap();
         assert!(side.is_none());
         let back = read(&png, None, false, &opts()).unwrap();
-        assert_same(&r, &back);
+        assert_same(&r, &back, "png round trip");
         // Same RGB codes as the source (alpha is 255 in both).
         assert_eq!(pixels(&png), pixels(&bytes));
     }

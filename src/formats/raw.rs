@@ -482,7 +482,7 @@ mod tests {
         let (f, j) = write(&r).unwrap();
         assert_eq!(f.len(), 24);
         let back = read(&f, &j, &opts()).unwrap();
-        assert_same(&r, &back);
+        assert_same(&r, &back, "raw round trip");
         assert_eq!(back.mapping, r.mapping);
         assert_eq!(back.nodata, Some(-9999.0));
         // No nodata declared: invalid samples become NaN and read back invalid.
@@ -491,7 +491,7 @@ mod tests {
         let (f, j) = write(&r2).unwrap();
         assert!(f32::from_le_bytes([f[4], f[5], f[6], f[7]]).is_nan());
         let back = read(&f, &j, &opts()).unwrap();
-        assert_same(&r2, &back);
+        assert_same(&r2, &back, "raw round trip");
     }
 
     #[test]
@@ -569,7 +569,7 @@ mod tests {
             // write → read is identical
             let (f, j) = write(&r).unwrap();
             let back = read(&f, &j, &opts()).unwrap();
-            assert_same(&r, &back);
+            assert_same(&r, &back, "raw round trip");
             eprintln!(
                 "{name}: {:?} nodata {:?} georef {:?}",
                 r.sample_type, r.nodata, r.georef

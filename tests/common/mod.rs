@@ -12,8 +12,8 @@ use vtz::{DecodeOptions, EncodeOptions, ErrorBound, Method, Raster, SampleType};
 
 // ---------------------------------------------------------------- random numbers
 
-mod rng;
-pub use rng::Rng;
+mod shared;
+pub use shared::{Rng, assert_same};
 
 // ---------------------------------------------------------------- synthetic terrain
 
@@ -120,28 +120,6 @@ pub fn terrain(kind: Kind, w: usize, h: usize, seed: u64, holes: bool, st: Sampl
 /// The samples' bit patterns (to compare decodes exactly, NaN fills included).
 pub fn bits(r: &Raster) -> Vec<u64> {
     r.data.iter().map(|v| v.to_bits()).collect()
-}
-
-/// The same raster: size, mask, nodata, georef, sample type, and every valid sample to the bit.
-pub fn assert_same(a: &Raster, b: &Raster, what: &str) {
-    assert_eq!((a.width, a.height), (b.width, b.height), "{what}");
-    assert_eq!(a.mask, b.mask, "{what}: mask");
-    assert_eq!(
-        a.nodata.map(f64::to_bits),
-        b.nodata.map(f64::to_bits),
-        "{what}: nodata"
-    );
-    assert_eq!(a.georef, b.georef, "{what}: georef");
-    assert_eq!(a.sample_type, b.sample_type, "{what}: sample type");
-    for i in 0..a.len() {
-        if a.is_valid(i) {
-            assert_eq!(
-                a.data[i].to_bits(),
-                b.data[i].to_bits(),
-                "{what}: sample {i}"
-            );
-        }
-    }
 }
 
 // ---------------------------------------------------------------- options

@@ -35,18 +35,11 @@ pub(super) fn opts() -> ReadOptions {
     ReadOptions::default()
 }
 
-/// Same raster, comparing floats by bits (NaN fill values included).
+/// Same raster ([`crate::testutil::assert_same`]), and also the same value mapping and
+/// every sample to the bit, invalid samples' fills (NaN included) too.
 pub(super) fn assert_same(a: &Raster, b: &Raster, what: &str) {
-    assert_eq!((a.width, a.height), (b.width, b.height), "{what}: size");
-    assert_eq!(a.sample_type, b.sample_type, "{what}: sample type");
-    assert_eq!(a.mask, b.mask, "{what}: mask");
-    assert_eq!(
-        a.nodata.map(f64::to_bits),
-        b.nodata.map(f64::to_bits),
-        "{what}: nodata"
-    );
+    crate::testutil::assert_same(a, b, what);
     assert_eq!(a.mapping, b.mapping, "{what}: mapping");
-    assert_eq!(a.georef, b.georef, "{what}: georef");
     let differing = a
         .data
         .iter()
