@@ -192,3 +192,23 @@ fn fis_reproduces_the_papers_fixed_s_setting_without_a_bound() {
         Err(vtz::Error::InvalidArgument { .. })
     ));
 }
+
+#[test]
+fn several_methods_share_one_progress_bar_that_never_runs_back() {
+    // Each method reports its own 0..1; the codec gives each its slice of the whole.
+    let r = common::terrain(common::Kind::Fbm, 96, 80, 3, false, vtz::SampleType::I16);
+    let opts = encode_opts(
+        &[Method::GRID, Method::HAAR, Method::FIS],
+        Some(ErrorBound::PercentOfRange(10.0)),
+    );
+    let mut seen = Vec::new();
+    vtz::encode_progress(&r, &opts, &mut |f| seen.push(f)).unwrap();
+    assert!(seen.len() > 3, "haar and fis report progress: {seen:?}");
+    assert!(seen.iter().all(|f| (0.0..=1.0).contains(f)), "{seen:?}");
+    assert!(
+        seen.windows(2).all(|w| w[0] <= w[1]),
+        "never back: {seen:?}"
+    );
+    // FIS, the last of three, reports in the last third.
+    assert!(seen.iter().any(|&f| f > 2.0 / 3.0), "{seen:?}");
+}

@@ -88,8 +88,9 @@ pub(crate) fn encode_once(
             REGISTRY.to_vec()
         };
         let mut last_err = None;
-        for m in tries {
-            match encode_method(m, raster, &header, opts, e, progress) {
+        let n = tries.len();
+        for (i, m) in tries.into_iter().enumerate() {
+            match encode_method(m, raster, &header, opts, e, &mut slot(progress, i, n)) {
                 Ok(c) => cands.push(c),
                 Err(err) => last_err = Some(err),
             }
@@ -104,6 +105,7 @@ pub(crate) fn encode_once(
             .expect("non-empty");
         cands = vec![cands.swap_remove(i)];
     } else {
+        let n = opts.methods.len();
         for (k, m) in opts.methods.iter().enumerate() {
             if cands.iter().any(|c| c.method.name() == m.name()) {
                 continue;
@@ -115,7 +117,8 @@ pub(crate) fn encode_once(
                 o.params = Default::default();
                 m.0.keep_own(&opts.params, &mut o.params);
             }
-            cands.push(encode_method(m.0, raster, &header, &o, e, progress)?);
+            let mut p = slot(progress, k, n);
+            cands.push(encode_method(m.0, raster, &header, &o, e, &mut p)?);
         }
     }
     let primary = (0..cands.len())
@@ -155,4 +158,10 @@ pub(crate) fn encode_once(
         });
     }
     Ok((container::write(&header, &sections), report))
+}
+
+/// The progress of the `i`-th of `n` encodes as its slice of the whole, so that several
+/// methods in a row never move the caller's bar backwards.
+fn slot(progress: &mut dyn FnMut(f64), i: usize, n: usize) -> impl FnMut(f64) + '_ {
+    move |f| progress((i as f64 + f.clamp(0.0, 1.0)) / n.max(1) as f64)
 }

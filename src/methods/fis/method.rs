@@ -1,6 +1,6 @@
 //! The FIS representation as the registry sees it.
 
-use super::{FisParams, decode, describe, encode};
+use super::{FisParams, decode, describe, encode_with};
 use crate::container::SectionKind;
 use crate::error::{Error, Result};
 use crate::methods::{
@@ -34,20 +34,22 @@ impl Representation for Fis {
     fn keep_own(&self, from: &MethodParams, to: &mut MethodParams) {
         to.fis = from.fis.clone();
     }
-    fn encode(&self, job: &EncodeJob, _progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
+    fn encode(&self, job: &EncodeJob, progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
         let o = &job.params.fis;
         if job.lossless() && o.k.is_none() {
             return Err(Error::invalid(
                 "the fis method needs --max-error or --fis-k",
             ));
         }
-        let (payload, st) = encode(
+        let (payload, st) = encode_with(
             job.raster,
+            job.header,
             &FisParams {
                 max_error: job.max_error.filter(|&e| e > 0.0),
                 k: o.k,
                 fixed_s: o.s,
             },
+            progress,
         )?;
         Ok((payload, st.max_error).into())
     }

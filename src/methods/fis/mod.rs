@@ -603,7 +603,19 @@ fn height_step(header: &Header, e: f64) -> f64 {
 /// Encode `r` as an FIS payload. With `max_error`, the coarsest spacing k (and height step)
 /// whose decoded surface meets it — or an error saying FIS cannot meet it at any k ≥ 2.
 /// With `k` alone, that spacing with near-exact heights (the paper's setting).
+#[cfg(any(test, feature = "internals"))]
 pub fn encode(r: &Raster, p: &FisParams) -> Result<(Vec<u8>, FisStats)> {
+    encode_with(r, &Header::of(r)?, p, &mut |_| {})
+}
+
+/// [`encode`] with the raster's header (as the container will store it) and a progress
+/// callback (fraction of the trials done).
+pub(crate) fn encode_with(
+    r: &Raster,
+    header: &Header,
+    p: &FisParams,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(Vec<u8>, FisStats)> {
     r.validate()?;
     if let Some(s) = p.fixed_s {
         if !(s.is_finite() && s.abs() < 1.0) {
@@ -612,14 +624,13 @@ pub fn encode(r: &Raster, p: &FisParams) -> Result<(Vec<u8>, FisStats)> {
             )));
         }
     }
-    let header = Header::of(r)?;
     let range = header.range.map_or(0.0, |(lo, hi)| hi - lo);
     // Nodata filled once; every trial pads it to its own geometry.
     let filled = r.filled();
     let one_with = |k: usize, step: f64, fixed: Option<f64>| -> Result<(Model, Vec<f64>)> {
         let g = Geometry::new(r.width, r.height, k)?;
         let (hpad, valid) = padded(r, &filled, &g);
-        Ok(build(&header, (&hpad, &valid), g, step, fixed))
+        Ok(build(header, (&hpad, &valid), g, step, fixed))
     };
     let one = |k: usize, step: f64| one_with(k, step, p.fixed_s);
     let finish = |model: Model, dec: Vec<f64>| -> (Vec<u8>, FisStats) {
@@ -661,10 +672,17 @@ pub fn encode(r: &Raster, p: &FisParams) -> Result<(Vec<u8>, FisStats)> {
             *best = Some(c);
         }
     };
+    // Progress: the bisection's trials, then at most 2 spacings × 3 steps × 2 factor kinds.
+    let total = (usize::BITS - ks.len().leading_zeros()) as f64 + 12.0;
+    let mut done = 0.0;
+    let mut tick = |progress: &mut dyn FnMut(f64)| {
+        done += 1.0;
+        progress((done / total).min(1.0));
+    };
     // Does spacing ks[idx] meet the bound with the finest height step? (Errors grow with k,
     // so bisect for the coarsest spacing that does.)
     let mut meets = |idx: usize| -> Result<bool> {
-        let (_, dec) = one(ks[idx], height_step(&header, e * 0.25))?;
+        let (_, dec) = one(ks[idx], height_step(header, e * 0.25))?;
         let maxe = errors(r, &dec).0;
         closest = closest.min(maxe);
         Ok(maxe <= e)
@@ -672,6 +690,7 @@ pub fn encode(r: &Raster, p: &FisParams) -> Result<(Vec<u8>, FisStats)> {
     let (mut lo, mut hi) = (0usize, ks.len());
     while lo < hi {
         let mid = (lo + hi) / 2;
+        tick(progress);
         if meets(mid)? {
             hi = mid;
         } else {
@@ -682,7 +701,8 @@ pub fn encode(r: &Raster, p: &FisParams) -> Result<(Vec<u8>, FisStats)> {
     // with three height steps, fitted factors and the boundary factor alone.
     for &k in ks.iter().skip(lo).take(2) {
         for frac in [0.25, 0.5, 1.0] {
-            let step = height_step(&header, e * frac);
+            let step = height_step(header, e * frac);
+            tick(progress);
             let (model, dec) = one(k, step)?;
             if errors(r, &dec).0 > e {
                 break;
@@ -690,6 +710,7 @@ pub fn encode(r: &Raster, p: &FisParams) -> Result<(Vec<u8>, FisStats)> {
             let s0 = model.s0;
             consider(model, dec, &mut best);
             if p.fixed_s.is_none() {
+                tick(progress);
                 let (model, dec) = one_with(k, step, Some(s0))?;
                 if errors(r, &dec).0 <= e {
                     consider(model, dec, &mut best);

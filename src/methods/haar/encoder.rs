@@ -384,7 +384,18 @@ fn choose_lattice(r: &Raster, fine: Option<f64>) -> Result<(f64, f64)> {
 
 /// Encode `r` as a Haar-section payload meeting `p.max_error`. Returns the payload and the
 /// max error it guarantees (measured over every valid sample, ≤ `p.max_error`).
+#[cfg(test)]
 pub fn encode(r: &Raster, p: &HaarParams) -> Result<(Vec<u8>, f64)> {
+    encode_progress(r, p, &mut |_| {})
+}
+
+/// Encode `r` meeting `p.max_error` (the payload and the max error it guarantees, measured
+/// over every valid sample), reporting progress as the fraction of step profiles searched.
+pub(crate) fn encode_progress(
+    r: &Raster,
+    p: &HaarParams,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(Vec<u8>, f64)> {
     let e = p.max_error;
     if !(e >= 0.0 && e.is_finite()) {
         return Err(Error::invalid(format!(
@@ -393,7 +404,7 @@ pub fn encode(r: &Raster, p: &HaarParams) -> Result<(Vec<u8>, f64)> {
     }
     let (u, off) = choose_lattice(r, (e > 0.0).then_some(e / LATTICE_DIV))?;
     let prep = prepare(r, u, off, choose_levels(r.width, r.height))?;
-    let (payload, err, rec) = encode_bound(&prep, e, LINF_PROFILES)?;
+    let (payload, err, rec) = encode_bound(&prep, e, LINF_PROFILES, progress)?;
     prep.debug_check(&payload, &rec);
     Ok((payload, err))
 }
@@ -401,7 +412,12 @@ pub fn encode(r: &Raster, p: &HaarParams) -> Result<(Vec<u8>, f64)> {
 /// The closed loop of [`encode`]: for each profile, the largest base step whose
 /// reconstruction meets `e` on every valid sample; the smallest payload wins. Returns the
 /// payload, its max error and its reconstructed lattice codes.
-fn encode_bound(prep: &Prepared, e: f64, profiles: &[Profile]) -> Result<(Vec<u8>, f64, Vec<i64>)> {
+fn encode_bound(
+    prep: &Prepared,
+    e: f64,
+    profiles: &[Profile],
+    progress: &mut dyn FnMut(f64),
+) -> Result<(Vec<u8>, f64, Vec<i64>)> {
     let iv = prep.intervals(e)?;
     let mut t = Trial {
         q: vec![0; prep.coefs.len()],
@@ -411,7 +427,8 @@ fn encode_bound(prep: &Prepared, e: f64, profiles: &[Profile]) -> Result<(Vec<u8
     let mut best: Option<(Vec<u8>, Vec<i64>)> = None;
     let mut prev: Option<u64> = None;
     if e > 0.0 {
-        for prof in profiles {
+        for (i, prof) in profiles.iter().enumerate() {
+            progress(i as f64 / profiles.len() as f64);
             // Largest base step that passes: double, then bisect to 1/128.
             let pass = |n: u64, t: &mut Trial| {
                 prep.trial(&profile_steps(&prep.pyr, n, prof), prof, &iv, t)

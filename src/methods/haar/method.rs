@@ -1,6 +1,6 @@
 //! The Haar representation as the registry sees it.
 
-use super::{HaarParams, decode, describe, encode, encode_step};
+use super::{HaarParams, decode, describe, encode_progress, encode_step};
 use crate::container::SectionKind;
 use crate::error::Result;
 use crate::methods::{
@@ -46,14 +46,15 @@ impl Representation for Haar {
             set: |p, q| p.haar.step = Some(q),
         })
     }
-    fn encode(&self, job: &EncodeJob, _progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
+    fn encode(&self, job: &EncodeJob, progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
         let (payload, bound) = match job.params.haar.step {
             Some(step) => encode_step(job.raster, step)?,
-            None => encode(
+            None => encode_progress(
                 job.raster,
                 &HaarParams {
                     max_error: job.max_error.unwrap_or(0.0),
                 },
+                progress,
             )?,
         };
         Ok((payload, bound).into())

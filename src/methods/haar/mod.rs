@@ -21,7 +21,9 @@ mod quant;
 mod transform;
 
 pub use decoder::{decode, describe};
-pub use encoder::{encode, encode_step};
+#[cfg(test)]
+use encoder::encode;
+pub(crate) use encoder::{encode_progress, encode_step};
 
 /// Coding 0: S-transform Mallat pyramid, dead-zone quantizer, range-coded bands.
 const CODING_PYRAMID: u8 = 0;
