@@ -240,6 +240,8 @@ pub struct Decoder<R> {
     rd: ContainerReader<R>,
     info: FileInfo,
     opts: DecodeOptions,
+    /// The validity mask, once read for statistics or sites.
+    mask: Option<Option<Vec<bool>>>,
 }
 
 impl<R: Read + Seek> Decoder<R> {
@@ -289,7 +291,12 @@ impl<R: Read + Seek> Decoder<R> {
             limits,
             ..Default::default()
         };
-        Ok(Decoder { rd, info, opts })
+        Ok(Decoder {
+            rd,
+            info,
+            opts,
+            mask: None,
+        })
     }
 
     /// What the file holds.
@@ -349,7 +356,7 @@ impl<R: Read + Seek> Decoder<R> {
     /// in the file, its first section (the primary one where it is that method's).
     pub fn stats(&mut self) -> Result<Vec<Stats>> {
         let mut out = Vec::new();
-        for m in methods::REGISTRY {
+        for m in methods::REGISTRY.iter().filter(|m| m.has_stats()) {
             if let Some(s) = self.with_section(*m, |job| m.describe(job))? {
                 out.extend(s);
             }
@@ -360,7 +367,7 @@ impl<R: Read + Seek> Decoder<R> {
     /// The stored sites of the file's sites section (the primary one when it is one),
     /// in importance order.
     pub fn sites(&mut self) -> Result<Vec<Site>> {
-        for m in methods::REGISTRY {
+        for m in methods::REGISTRY.iter().filter(|m| m.stores_sites()) {
             if let Some(Some(s)) = self.with_section(*m, |job| m.sites(job))? {
                 return Ok(s);
             }
@@ -382,12 +389,14 @@ impl<R: Read + Seek> Decoder<R> {
             _ => self.rd.find(m.section()),
         };
         let Some(i) = idx else { return Ok(None) };
-        let mask = self.rd.read_mask()?;
+        if self.mask.is_none() {
+            self.mask = Some(self.rd.read_mask()?);
+        }
         let payload = self.rd.read_section(i)?;
         let job = DecodeJob {
             payload: &payload,
             header: &header,
-            mask: mask.as_deref(),
+            mask: self.mask.as_ref().and_then(|m| m.as_deref()),
             window: Window::full(header.width as usize, header.height as usize),
             sites: None,
             levels: None,

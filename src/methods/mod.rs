@@ -209,10 +209,14 @@ pub(crate) trait Representation: Sync {
     fn describe(&self, _job: &DecodeJob) -> Result<Option<Stats>> {
         Ok(None)
     }
-    /// Whether [`Representation::describe`] reports statistics (`vtz info --json` shows
-    /// a key for each such method).
+    /// Whether [`Representation::describe`] reports statistics (so its section is worth
+    /// reading for them; `vtz info --json` shows a key for each such method).
     fn has_stats(&self) -> bool {
-        true
+        false
+    }
+    /// Whether its payloads store sites ([`Representation::sites`]).
+    fn stores_sites(&self) -> bool {
+        false
     }
     /// The sites a payload stores, in importance order, with their level; `None` for
     /// methods that store no sites.

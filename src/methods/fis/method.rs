@@ -56,6 +56,9 @@ impl Representation for Fis {
     fn decode_full(&self, job: &DecodeJob) -> Result<Vec<f64>> {
         decode(job.payload, job.header, job.mask)
     }
+    fn has_stats(&self) -> bool {
+        true
+    }
     fn describe(&self, job: &DecodeJob) -> Result<Option<Stats>> {
         let (k, points, s0, iterations) = describe(job.payload, job.header)?;
         Ok(Some(Stats {

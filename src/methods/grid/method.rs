@@ -32,7 +32,4 @@ impl Representation for Grid {
     fn decode_full(&self, job: &DecodeJob) -> Result<Vec<f64>> {
         decode(job.payload, job.header, job.mask)
     }
-    fn has_stats(&self) -> bool {
-        false
-    }
 }

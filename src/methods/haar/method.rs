@@ -62,6 +62,9 @@ impl Representation for Haar {
     fn decode_full(&self, job: &DecodeJob) -> Result<Vec<f64>> {
         decode(job.payload, job.header, job.mask)
     }
+    fn has_stats(&self) -> bool {
+        true
+    }
     fn describe(&self, job: &DecodeJob) -> Result<Option<Stats>> {
         let (levels, step) = describe(job.payload)?;
         Ok(Some(Stats {

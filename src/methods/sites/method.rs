@@ -105,6 +105,12 @@ impl Representation for Sibson {
             job.header,
         )))
     }
+    fn has_stats(&self) -> bool {
+        true
+    }
+    fn stores_sites(&self) -> bool {
+        true
+    }
     fn sites(&self, job: &DecodeJob) -> Result<Option<Vec<Site>>> {
         let d = decode_sites(job.payload, job.header, job.mask, None, None)?;
         let w = job.header.width as usize;
