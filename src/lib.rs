@@ -75,4 +75,20 @@ pub mod internals {
     pub mod fis {
         pub use crate::methods::fis::{FisParams, decode, encode};
     }
+    /// Each method's section type, in registry order (the fuzz targets build files with them).
+    pub fn method_sections() -> Vec<(&'static str, crate::container::SectionKind)> {
+        crate::methods::REGISTRY
+            .iter()
+            .map(|m| (m.id().name, m.id().section))
+            .collect()
+    }
+    /// The raster readers, each on bytes in memory (the fuzz targets call them directly).
+    pub mod formats {
+        pub use crate::formats::asc::read as asc;
+        pub use crate::formats::exr::read as exr;
+        pub use crate::formats::geotiff::read as geotiff;
+        pub use crate::formats::hgt::read as hgt;
+        pub use crate::formats::png::read as png;
+        pub use crate::formats::raw::read as raw;
+    }
 }

@@ -1,0 +1,42 @@
+//! Any bytes as a `.vtz` file: open (header, directory), then read the stats, the sites and
+//! every section's decode. Checksums are not enforced in fuzzing builds (`cfg(fuzzing)`),
+//! so the fuzzer reaches the parsers behind them. Errors are fine; panics, aborts and
+//! allocations beyond the limits are not.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use std::io::Cursor;
+use vtz::{Decoder, Limits, SectionChoice, Window};
+
+fuzz_target!(|data: &[u8]| {
+    let limits = Limits {
+        max_samples: 1 << 16,
+        max_section_bytes: 1 << 20,
+    };
+    let Ok(mut d) = Decoder::with_limits(Cursor::new(data), limits) else {
+        return;
+    };
+    let info = d.info().clone();
+    let _ = d.stats();
+    let _ = d.sites();
+    for i in 0..info.sections.len().min(8) {
+        d.section(SectionChoice::Index(i));
+        if let Ok(full) = d.decode() {
+            assert_eq!(full.width, info.width as usize);
+            assert_eq!(full.height, info.height as usize);
+            // A window decodes to the crop of the full decode.
+            let (w, h) = (full.width, full.height);
+            let win = Window { x: w / 3, y: h / 2, width: w - w / 3, height: h - h / 2 };
+            if let Ok(part) = d.window(win).decode() {
+                for y in 0..win.height {
+                    for x in 0..win.width {
+                        let a = part.data[y * win.width + x];
+                        let b = full.data[(y + win.y) * w + x + win.x];
+                        assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));
+                    }
+                }
+            }
+            d.window(Window { x: 0, y: 0, width: w, height: h });
+        }
+    }
+});

@@ -1,0 +1,103 @@
+#!/usr/bin/env python3
+"""Seed corpora for the fuzz targets, from the golden files (tests/golden) and small
+crops of corpus rasters written by the vtz CLI in every format it reads.
+
+    python3 fuzz/make_seeds.py [path/to/vtz]     # writes fuzz/corpus/<target>/
+"""
+import os, random, struct, subprocess, sys, tempfile, glob
+
+root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+vtz = sys.argv[1] if len(sys.argv) > 1 else os.path.join(root, "target/release/vtz")
+out = os.path.join(root, "fuzz/corpus")
+for t in ("container", "sections", "readers", "roundtrip"):
+    os.makedirs(os.path.join(out, t), exist_ok=True)
+
+def put(target, name, data):
+    with open(os.path.join(out, target, name), "wb") as f:
+        f.write(data)
+
+def run(*args):
+    subprocess.run([vtz, *args], check=True, stdout=subprocess.DEVNULL)
+
+def sections_of(data):
+    """(header fields, [(kind, flags, payload)]) of a .vtz file."""
+    hlen = struct.unpack_from("<I", data, 12)[0]
+    pos = 16 + hlen + 4
+    count = struct.unpack_from("<I", data, pos)[0]
+    pos += 4
+    entries = []
+    for _ in range(count):
+        kind, flags, _crc, length = struct.unpack_from("<HHIQ", data, pos)
+        entries.append((kind, flags, length))
+        pos += 16
+    pos += 4
+    secs = []
+    for kind, flags, length in entries:
+        secs.append((kind, flags, data[pos:pos + length]))
+        pos += length
+    return secs
+
+METHOD_INDEX = {3: 0, 2: 1, 5: 2, 4: 3}  # section code → registry index (sibson, grid, haar, fis)
+TYPE_CODE = {"u8": 0, "i16": 1, "u16": 2, "i32": 3, "f32": 4, "f64": 5}
+
+with tempfile.TemporaryDirectory() as tmp:
+    vtzs = sorted(glob.glob(os.path.join(root, "tests/golden/*.vtz")))
+    # Small files of every method, with and without a mask, from corpus crops.
+    srcs = [("kauai", "corpus/srtm3_N22W160_kauai.hgt", "600,500,40,33", "i16"),
+            ("bijou", "corpus/nasadem_west_bijou_escarpment_landlab.asc", "10,10,31,17", "f32"),
+            ("crater", "corpus/scape_crater.png", "100,100,24,24", "u16")]
+    for name, path, win, st in srcs:
+        crop = os.path.join(tmp, name + ".tif")
+        full = os.path.join(tmp, name + "_full.vtz")
+        run("encode", os.path.join(root, path), "-o", full, "--force", "-q")
+        run("decode", full, "-o", crop, "--window", win, "--force", "-q")
+        for fmt in ("tif", "png", "exr", "asc", "f32", "hgt"):
+            p = os.path.join(tmp, f"{name}_out.{fmt}")
+            try:
+                run("convert", crop, p, "--force", "-q")
+            except subprocess.CalledProcessError:
+                continue
+            pick = {"tif": 0, "png": 1, "exr": 3, "hgt": 4, "asc": 5, "f32": 6}[fmt]
+            body = open(p, "rb").read()
+            if fmt == "f32":
+                js = open(p[:-4] + ".json", "rb").read()
+                body = struct.pack("<H", len(js)) + js + body
+            put("readers", f"{name}.{fmt}", bytes([pick]) + body)
+        for m, bound in (("sibson", "2%"), ("sibson", "1"), ("grid", "0"), ("grid", "1"), ("haar", "3"), ("fis", "5%")):
+            p = os.path.join(tmp, f"{name}_{m}_{bound.strip('%')}.vtz")
+            args = ["encode", crop, "-o", p, "--method", m, "--force", "-q"]
+            if bound != "0":
+                args += ["--max-error", bound]
+            try:
+                run(*args)
+            except subprocess.CalledProcessError:
+                continue
+            vtzs.append(p)
+    for p in vtzs:
+        data = open(p, "rb").read()
+        put("container", os.path.basename(p), data)
+        info = subprocess.run([vtz, "info", p, "--json"], check=True, capture_output=True, text=True).stdout
+        import json
+        j = json.loads(info)
+        w, h = j["width"], j["height"]
+        if w > 64 or h > 64:
+            continue
+        st = TYPE_CODE[j["sample_type"]]
+        secs = sections_of(data)
+        mask = [s for s in secs if s[0] == 1]
+        for kind, _flags, payload in secs:
+            if kind not in METHOD_INDEX:
+                continue
+            flags = 2 * (j.get("nodata") is not None) | 4
+            head = bytes([METHOD_INDEX[kind]])
+            body = b""
+            if mask:
+                flags |= 1
+                body = struct.pack("<H", len(mask[0][2])) + mask[0][2]
+            seed = head + bytes([flags]) + struct.pack("<HHB", w - 1, h - 1, st) + body + payload
+            put("sections", f"{os.path.basename(p)}.{kind}", seed)
+    rng = random.Random(1)
+    for i in range(16):
+        n = rng.randrange(6, 400)
+        put("roundtrip", f"random{i}", bytes(rng.randrange(256) for _ in range(n)))
+print("seeds in", out)
