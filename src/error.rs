@@ -37,6 +37,14 @@ pub enum Error {
         /// What is wrong with the request.
         what: String,
     },
+    /// The request is valid but this method cannot meet it on this data (FIS at a bound no
+    /// spacing reaches, sibson with a bound that resolves to 0 on a constant raster). An
+    /// encode of several methods skips such a method with a note instead of failing.
+    #[error("cannot meet the request: {what}")]
+    Unmet {
+        /// Which method, which request, and how close it came.
+        what: String,
+    },
     /// The input would need more memory or work than the configured limits allow.
     #[error("limit exceeded: {what}")]
     LimitExceeded {
@@ -60,6 +68,10 @@ impl Error {
     /// An [`Error::InvalidArgument`].
     pub fn invalid(what: impl Into<String>) -> Self {
         Error::InvalidArgument { what: what.into() }
+    }
+    /// An [`Error::Unmet`].
+    pub fn unmet(what: impl Into<String>) -> Self {
+        Error::Unmet { what: what.into() }
     }
     /// An [`Error::LimitExceeded`].
     pub fn limit(what: impl Into<String>) -> Self {
@@ -89,6 +101,9 @@ impl Error {
                 what: format!("{ctx}: {what}"),
             },
             Error::LimitExceeded { what } => Error::LimitExceeded {
+                what: format!("{ctx}: {what}"),
+            },
+            Error::Unmet { what } => Error::Unmet {
                 what: format!("{ctx}: {what}"),
             },
         }

@@ -44,8 +44,8 @@ mod testutil;
 
 pub use codec::{
     DecodeOptions, Decoder, EncodeOptions, EncodeReport, Encoder, FileInfo, Sample, Scale,
-    SectionChoice, SectionInfo, decode, decode_from, decode_with, encode, encode_progress,
-    encode_report, info, read_path, write_path,
+    SectionChoice, SectionInfo, Verified, decode, decode_from, decode_with, encode,
+    encode_progress, encode_report, info, read_path, write_path,
 };
 pub use container::Limits;
 pub use error::{Error, Result};

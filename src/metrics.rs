@@ -90,3 +90,51 @@ pub fn compare(a: &Raster, b: &Raster) -> Result<Comparison> {
 pub fn bits_per_sample(bytes: u64, samples: usize) -> f64 {
     8.0 * bytes as f64 / samples.max(1) as f64
 }
+
+/// A number for people: the digits that matter and no more. Whole numbers print whole
+/// (`1579`, `-32768`); others keep 6 significant digits without trailing zeros (`0.0620`
+/// becomes `0.062`, `0.1916875000000001` becomes `0.191688`); tiny and huge magnitudes use
+/// exponent notation (`1.5e-9`); infinities and NaN print as `inf`, `-inf`, `NaN`.
+pub fn num(x: f64) -> String {
+    if !x.is_finite() {
+        return format!("{x}");
+    }
+    if x == x.trunc() && x.abs() < 1e15 {
+        return format!("{}", x as i64);
+    }
+    let a = x.abs();
+    if !(1e-4..1e15).contains(&a) {
+        let s = format!("{x:.5e}");
+        let (m, e) = s.split_once('e').unwrap_or((&s, "0"));
+        let m = m.trim_end_matches('0').trim_end_matches('.');
+        return format!("{m}e{e}");
+    }
+    let digits = (6 - 1 - a.log10().floor() as i32).max(0) as usize;
+    let s = format!("{x:.digits$}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    };
+    if s == "-0" { "0".into() } else { s }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::num;
+
+    #[test]
+    fn numbers_print_with_the_digits_that_matter() {
+        assert_eq!(num(1579.0), "1579");
+        assert_eq!(num(-32768.0), "-32768");
+        assert_eq!(num(0.0620), "0.062");
+        assert_eq!(num(0.1916875000000001), "0.191688");
+        assert_eq!(num(2.5), "2.5");
+        assert_eq!(num(0.945), "0.945");
+        assert_eq!(num(1.0 / 3.0), "0.333333");
+        assert_eq!(num(123456.789), "123457");
+        assert_eq!(num(1.5e-9), "1.5e-9");
+        assert_eq!(num(f64::INFINITY), "inf");
+        assert_eq!(num(-0.0), "0");
+    }
+}

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 // The one test generator, shared with the integration tests and the benches.
 #[path = "../tests/common/shared.rs"]
 mod shared;
-pub use shared::{Rng, assert_same};
+pub use shared::{Rng, assert_same, skip};
 
 /// The shared corpus directory, or `None` (with a message) when it is absent.
 pub fn corpus() -> Option<PathBuf> {
@@ -16,7 +16,7 @@ pub fn corpus() -> Option<PathBuf> {
     if dir.is_dir() {
         Some(dir)
     } else {
-        eprintln!("corpus not found at {}: skipping", dir.display());
+        skip(&format!("{} is absent", dir.display()));
         None
     }
 }

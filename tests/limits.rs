@@ -124,17 +124,24 @@ fn window_is_checked_against_the_raster_before_allocation() {
 }
 
 #[test]
-fn huge_site_and_level_counts_allocate_nothing_extra() {
-    // `--sites N` and `--level K` only stop the decode early; a count past the stream
-    // decodes it whole, and the output is sized by the raster, not by N.
+fn huge_site_and_level_counts_are_refused_without_allocating() {
+    // `--sites N` and `--level K` past what the stream holds are errors that name the
+    // range (never clamped silently), raised before anything is sized by N.
     let bytes = sites_file();
-    let full = vtz::decode(&bytes).unwrap();
-    for set in [
-        (|o: &mut DecodeOptions| o.sites = Some(usize::MAX)) as fn(&mut DecodeOptions),
-        |o: &mut DecodeOptions| o.levels = Some(usize::MAX),
+    for (set, what) in [
+        (
+            (|o: &mut DecodeOptions| o.sites = Some(usize::MAX)) as fn(&mut DecodeOptions),
+            "--sites",
+        ),
+        (
+            |o: &mut DecodeOptions| o.levels = Some(usize::MAX),
+            "--level",
+        ),
     ] {
-        let r = vtz::decode_with(&bytes, &with(set)).unwrap();
-        assert_eq!(r, full);
+        match vtz::decode_with(&bytes, &with(set)) {
+            Err(vtz::Error::InvalidArgument { what: w }) => assert!(w.contains(what), "{w}"),
+            other => panic!("{what}: {other:?}"),
+        }
     }
 }
 

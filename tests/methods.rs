@@ -154,7 +154,7 @@ fn fis_that_cannot_meet_a_bound_says_so() {
     let r = crater();
     let opts = encode_opts(&[Method::FIS], Some(ErrorBound::PercentOfRange(0.5)));
     let err = vtz::encode(&r, &opts).unwrap_err();
-    assert!(matches!(err, vtz::Error::InvalidArgument { .. }), "{err}");
+    assert!(matches!(err, vtz::Error::Unmet { .. }), "{err}");
     assert!(err.to_string().contains("cannot meet"), "{err}");
     // `best` simply leaves FIS out.
     let best = encode_opts(&[], Some(ErrorBound::PercentOfRange(0.5)));

@@ -21,6 +21,9 @@ fn manifest(dir: &Path) -> Vec<serde_json::Value> {
 fn read_flags(original: &str) -> Vec<&'static str> {
     if original.starts_with("srtm1_N45E013") {
         vec!["--png-offset", "-32768", "--png-nodata", "0"]
+    } else if original.contains("terrainrgb") {
+        // A colour PNG is read as heights only when asked.
+        vec!["--from", "terrain-rgb"]
     } else {
         vec![]
     }
@@ -65,16 +68,24 @@ fn originals_convert_bit_exactly() {
         let ext = Path::new(orig).extension().unwrap().to_str().unwrap();
         let again = tmp.path().join(format!("again_{name}.{ext}"));
         convert(&src, &again, &flags);
+        let trgb = orig.contains("terrainrgb");
         let ro = vtz::formats::ReadOptions {
-            png_mapping: (!flags.is_empty()).then(|| vtz::formats::PngMapping {
-                scale: 1.0,
-                offset: -32768.0,
-                nodata_code: Some(0),
-            }),
+            png_mapping: orig
+                .starts_with("srtm1_N45E013")
+                .then(|| vtz::formats::PngMapping {
+                    scale: 1.0,
+                    offset: -32768.0,
+                    nodata_code: Some(0),
+                }),
+            format: trgb.then_some(vtz::formats::Format::TerrainRgb),
             ..Default::default()
         };
         let a = vtz::read_path(&src, &ro).unwrap();
-        let b = vtz::read_path(&again, &Default::default()).unwrap();
+        let again_ro = vtz::formats::ReadOptions {
+            format: trgb.then_some(vtz::formats::Format::TerrainRgb),
+            ..Default::default()
+        };
+        let b = vtz::read_path(&again, &again_ro).unwrap();
         assert_same(&a, &b, orig);
         if ext == "hgt" {
             assert!(

@@ -54,6 +54,7 @@ pub(crate) fn check_output(
 pub(crate) fn decode_reader<R: Read + Seek>(
     rd: &mut ContainerReader<R>,
     opts: &DecodeOptions,
+    progress: &(dyn Fn(f64) + Sync),
 ) -> Result<Raster> {
     let header = rd.header().clone();
     let mask = rd.read_mask()?;
@@ -73,6 +74,20 @@ pub(crate) fn decode_reader<R: Read + Seek>(
         return Err(Error::invalid(format!(
             "window {},{},{},{} is not inside the {w}x{h} raster",
             win.x, win.y, win.width, win.height
+        )));
+    }
+    if entry.kind == SectionKind::MASK || entry.kind == SectionKind::METADATA {
+        let methods: Vec<String> = rd
+            .entries()
+            .iter()
+            .enumerate()
+            .filter(|(_, e)| methods::by_section(e.kind).is_some())
+            .map(|(i, e)| format!("{i} ({})", e.name))
+            .collect();
+        return Err(Error::invalid(format!(
+            "section {idx} is the {}, not a surface; choose one of: {}",
+            entry.name,
+            methods.join(", ")
         )));
     }
     let Some(method) = methods::by_section(entry.kind) else {
@@ -108,6 +123,7 @@ pub(crate) fn decode_reader<R: Read + Seek>(
         levels: opts.levels,
         threads: opts.threads,
         base: None,
+        progress,
     };
     if let Some(s) = opts.scale {
         return decode_scaled(method, &job, s);

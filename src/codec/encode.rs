@@ -5,7 +5,7 @@ use super::options::EncodeOptions;
 use crate::container::{self, Header, SF_REQUIRED, Section, SectionKind};
 use crate::error::{Error, Result};
 use crate::methods::{EncodeJob, Encoded, Method, REGISTRY, Representation, Stats};
-use crate::model::Raster;
+use crate::model::{Raster, Window};
 
 /// What an encode produced besides the bytes.
 #[derive(Clone, Debug, PartialEq)]
@@ -17,6 +17,12 @@ pub struct EncodeReport {
     pub method: Method,
     /// The primary method's statistics, when it measures them while encoding (sibson).
     pub stats: Option<Stats>,
+    /// Methods of a several-method request left out because they cannot meet it, each
+    /// with the reason.
+    pub skipped: Vec<(Method, String)>,
+    /// The methods encoded in full (for `best`: the shortlist its trial on sample tiles
+    /// kept; every method `best` may try on small rasters).
+    pub encoded: Vec<Method>,
 }
 
 /// One encoded representation, before it goes into the container.
@@ -66,31 +72,30 @@ pub(crate) fn encode_once(
     let mut header = Header::of(raster)?;
     let e = opts.max_error.map(|b| b.absolute(header.range));
     let mut cands: Vec<Candidate> = Vec::new();
+    let mut skipped: Vec<(Method, String)> = Vec::new();
+    let mut encoded: Vec<Method> = Vec::new();
     if opts.methods.is_empty() {
-        // `best`: every method that can meet the request; the smallest wins. A method that
-        // cannot (e.g. FIS at a bound no subgrid reaches) simply drops out. Settings that
-        // only one method reads (a site count, an RMSE) name that method alone.
-        let owners: Vec<&'static dyn Representation> = REGISTRY
-            .iter()
-            .copied()
-            .filter(|m| m.own_options(&opts.params).is_some())
-            .collect();
-        let lossless = e.is_none_or(|e| e == 0.0);
-        let tries: Vec<&'static dyn Representation> = if !owners.is_empty() {
-            owners
-        } else if lossless {
-            REGISTRY
-                .iter()
-                .copied()
-                .filter(|m| m.lossless_default())
-                .collect()
+        // `best`: the methods that can meet the request, shortlisted by a trial on sample
+        // tiles (large rasters only), each encoded in full; the smallest wins.
+        let runs = best_runs(raster, opts, e);
+        let short = if raster.len() > EXHAUSTIVE_MAX_SAMPLES && runs.len() > 1 {
+            shortlist(&runs, raster, opts, &mut |f| progress(ESTIMATE_SHARE * f))?
         } else {
-            REGISTRY.to_vec()
+            runs
         };
+        let n = short.len();
         let mut last_err = None;
-        let n = tries.len();
-        for (i, m) in tries.into_iter().enumerate() {
-            match encode_method(m, raster, &header, opts, e, &mut slot(progress, i, n)) {
+        for (i, &(m, e)) in short.iter().enumerate() {
+            if !encoded.iter().any(|x| x.name() == m.name()) {
+                encoded.push(Method(m));
+            }
+            let mut p = |f: f64| {
+                progress(
+                    ESTIMATE_SHARE
+                        + (1.0 - ESTIMATE_SHARE) * (i as f64 + f.clamp(0.0, 1.0)) / n as f64,
+                )
+            };
+            match encode_method(m, raster, &header, opts, e, &mut p) {
                 Ok(c) => cands.push(c),
                 Err(err) => last_err = Some(err),
             }
@@ -106,6 +111,7 @@ pub(crate) fn encode_once(
         cands = vec![cands.swap_remove(i)];
     } else {
         let n = opts.methods.len();
+        let mut first_err = None;
         for (k, m) in opts.methods.iter().enumerate() {
             if cands.iter().any(|c| c.method.name() == m.name()) {
                 continue;
@@ -118,7 +124,20 @@ pub(crate) fn encode_once(
                 m.0.keep_own(&opts.params, &mut o.params);
             }
             let mut p = slot(progress, k, n);
-            cands.push(encode_method(m.0, raster, &header, &o, e, &mut p)?);
+            encoded.push(*m);
+            match encode_method(m.0, raster, &header, &o, e, &mut p) {
+                Ok(c) => cands.push(c),
+                // Of several methods, one that cannot meet the request is left out with a
+                // note; the others still make the file.
+                Err(err @ Error::Unmet { .. }) if n > 1 => {
+                    skipped.push((*m, err.to_string()));
+                    first_err.get_or_insert(err);
+                }
+                Err(err) => return Err(err),
+            }
+        }
+        if cands.is_empty() {
+            return Err(first_err.expect("every method failed, so one error was kept"));
         }
     }
     let primary = (0..cands.len())
@@ -139,6 +158,8 @@ pub(crate) fn encode_once(
         max_error: cands[primary].enc.bound,
         method: Method(cands[primary].method),
         stats: cands[primary].enc.stats.clone(),
+        skipped,
+        encoded,
     };
     for (i, c) in cands.into_iter().enumerate() {
         sections.push(Section {
@@ -158,6 +179,117 @@ pub(crate) fn encode_once(
         });
     }
     Ok((container::write(&header, &sections), report))
+}
+
+/// Rasters up to this many samples get every method `best` may try in full; larger ones a
+/// trial on sample tiles first ([`shortlist`]).
+const EXHAUSTIVE_MAX_SAMPLES: usize = 512 * 512;
+/// Side of a sample tile, and how many of them ([`shortlist`]).
+const TRIAL_TILE: usize = 128;
+const TRIAL_TILES: [usize; 2] = [4, 3];
+/// A method whose trial total is within this factor of the smallest is encoded in full.
+const TRIAL_MARGIN: f64 = 1.15;
+/// The share of the progress bar the trial takes.
+const ESTIMATE_SHARE: f64 = 0.1;
+
+/// What `best` may try: (method, the bound it is asked for). Settings only one method reads
+/// (a site count, an RMSE) name that method alone; a lossless request, the lossless
+/// methods; otherwise every method, and also the lossless grid when the bound is below half
+/// the data's own value step (then only the exact values meet it, and lossless coding
+/// stores them best).
+fn best_runs(
+    raster: &Raster,
+    opts: &EncodeOptions,
+    e: Option<f64>,
+) -> Vec<(&'static dyn Representation, Option<f64>)> {
+    let owners: Vec<_> = REGISTRY
+        .iter()
+        .copied()
+        .filter(|m| m.own_options(&opts.params).is_some())
+        .map(|m| (m, e))
+        .collect();
+    if !owners.is_empty() {
+        return owners;
+    }
+    let lossless_methods = REGISTRY.iter().copied().filter(|m| m.lossless_default());
+    match e {
+        None | Some(0.0) => lossless_methods.map(|m| (m, e)).collect(),
+        Some(b) => {
+            let mut runs: Vec<_> = REGISTRY.iter().map(|&m| (m, e)).collect();
+            if raster.value_step().is_some_and(|q| b < q / 2.0) {
+                runs.extend(lossless_methods.map(|m| (m, Some(0.0))));
+            }
+            runs
+        }
+    }
+}
+
+/// Estimate before encoding in full: run every candidate on a few sample tiles (a 4×3
+/// lattice of 128² windows spread over the raster, about 200 000 samples, as SZ3 samples
+/// blocks to choose its predictor) and keep those whose total payload comes within
+/// [`TRIAL_MARGIN`] of the smallest. A method that cannot meet the request on a tile drops
+/// out. The encoders' cost grows with size (the sites encoder about N^1.5), so the trial
+/// costs a small part of one full encode; `benches/best_choice.sh` checks that the choice
+/// equals the exhaustive one.
+fn shortlist(
+    runs: &[(&'static dyn Representation, Option<f64>)],
+    raster: &Raster,
+    opts: &EncodeOptions,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Vec<(&'static dyn Representation, Option<f64>)>> {
+    let (tw, th) = (TRIAL_TILE.min(raster.width), TRIAL_TILE.min(raster.height));
+    let [nx, ny] = TRIAL_TILES;
+    let mut tiles = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            // Tile centres at the centres of an nx × ny partition of the raster.
+            let x = ((2 * i + 1) * raster.width / (2 * nx)).saturating_sub(tw / 2);
+            let y = ((2 * j + 1) * raster.height / (2 * ny)).saturating_sub(th / 2);
+            let w = Window {
+                x: x.min(raster.width - tw),
+                y: y.min(raster.height - th),
+                width: tw,
+                height: th,
+            };
+            let t = raster.crop(w);
+            if t.valid_count() > 0 {
+                tiles.push(t);
+            }
+        }
+    }
+    if tiles.is_empty() {
+        return Ok(runs.to_vec());
+    }
+    let total = (runs.len() * tiles.len()) as f64;
+    let mut done = 0.0;
+    let mut sizes: Vec<Option<usize>> = Vec::with_capacity(runs.len());
+    for &(m, e) in runs {
+        let mut sum = Some(0usize);
+        for t in &tiles {
+            let h = Header::of(t)?;
+            let r = encode_method(m, t, &h, opts, e, &mut |_| {});
+            done += 1.0;
+            progress(done / total);
+            match r {
+                Ok(c) => *sum.as_mut().expect("still a candidate") += c.enc.payload.len(),
+                Err(_) => {
+                    sum = None;
+                    break;
+                }
+            }
+        }
+        sizes.push(sum);
+    }
+    let Some(min) = sizes.iter().flatten().copied().min() else {
+        // No method met the request on the tiles: let the full encodes say why.
+        return Ok(runs.to_vec());
+    };
+    Ok(runs
+        .iter()
+        .zip(&sizes)
+        .filter(|(_, s)| s.is_some_and(|s| s as f64 <= min as f64 * TRIAL_MARGIN))
+        .map(|(r, _)| *r)
+        .collect())
 }
 
 /// The progress of the `i`-th of `n` encodes as its slice of the whole, so that several

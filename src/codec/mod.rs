@@ -6,9 +6,11 @@ mod decode;
 mod encode;
 mod options;
 mod rate;
+mod verify;
 
 pub use encode::EncodeReport;
 pub use options::{DecodeOptions, EncodeOptions, Scale, SectionChoice};
+pub use verify::Verified;
 
 use crate::container::{ContainerReader, Limits, SF_REQUIRED};
 use crate::error::{Error, Result};
@@ -32,16 +34,32 @@ pub fn encode_report(raster: &Raster, opts: &EncodeOptions) -> Result<(Vec<u8>, 
     encode_progress(raster, opts, &mut |_| {})
 }
 
-/// [`encode_report`] with a progress callback (fraction done, 0..1).
+/// [`encode_report`] with a progress callback: the fraction done, 0 at the start, then
+/// never decreasing, 1 at the end.
 pub fn encode_progress(
     raster: &Raster,
     opts: &EncodeOptions,
     progress: &mut dyn FnMut(f64),
 ) -> Result<(Vec<u8>, EncodeReport)> {
-    match opts.target_bytes {
-        Some(t) => rate::encode_to_size(raster, opts, t, progress),
-        None => encode::encode_once(raster, opts, progress),
+    // The methods' own estimates can dip (a sites encoder's worst error rises when stale
+    // errors are refreshed): the caller sees only the high-water mark.
+    let mut high = 0.0f64;
+    progress(0.0);
+    let mut mono = |f: f64| {
+        let f = if f.is_nan() { 0.0 } else { f.clamp(0.0, 1.0) };
+        if f > high {
+            high = f;
+            progress(f);
+        }
+    };
+    let out = match opts.target_bytes {
+        Some(t) => rate::encode_to_size(raster, opts, t, &mut mono),
+        None => encode::encode_once(raster, opts, &mut mono),
+    };
+    if out.is_ok() {
+        mono(1.0);
     }
+    out
 }
 
 /// Decode `.vtz` bytes into a raster (the primary section).
@@ -58,7 +76,7 @@ pub fn decode_with(bytes: &[u8], opts: &DecodeOptions) -> Result<Raster> {
 /// decode needs are read.
 pub fn decode_from<R: Read + Seek>(reader: R, opts: &DecodeOptions) -> Result<Raster> {
     let mut rd = decode::open(reader, opts.limits)?;
-    decode::decode_reader(&mut rd, opts)
+    decode::decode_reader(&mut rd, opts, &|_| {})
 }
 
 /// Read a raster file of any format vtz knows, `.vtz` included (decoded).
@@ -325,7 +343,24 @@ impl<R: Read + Seek> Decoder<R> {
 
     /// Decode into a raster.
     pub fn decode(&mut self) -> Result<Raster> {
-        decode::decode_reader(&mut self.rd, &self.opts)
+        decode::decode_reader(&mut self.rd, &self.opts, &|_| {})
+    }
+
+    /// Check the whole file: every checksum, every section decoded in full, each decode
+    /// against the mask, the header's value range widened by the section's stored max
+    /// error, and the surfaces against one another. The first problem is the error
+    /// ([`Error::Corrupt`] for what the file gets wrong).
+    pub fn verify(&mut self) -> Result<Verified> {
+        verify::verify(&mut self.rd)
+    }
+
+    /// [`Decoder::decode`] with a progress callback: the fraction done, 0..1, never
+    /// decreasing (it may be called from several threads).
+    pub fn decode_progress(&mut self, progress: &(dyn Fn(f64) + Sync)) -> Result<Raster> {
+        progress(0.0);
+        let r = decode::decode_reader(&mut self.rd, &self.opts, progress)?;
+        progress(1.0);
+        Ok(r)
     }
 
     /// Decode into the caller's buffer of the file's sample type (or a wider one): one
@@ -402,6 +437,7 @@ impl<R: Read + Seek> Decoder<R> {
             levels: None,
             threads: 1,
             base: None,
+            progress: &|_| {},
         };
         f(&job).map(Some)
     }

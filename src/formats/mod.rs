@@ -113,6 +113,9 @@ pub struct WriteOptions {
     pub force: bool,
     /// Value mapping for 16-bit PNG output (defaults to the raster's own mapping).
     pub png_mapping: Option<png::PngMapping>,
+    /// Let a format that cannot hold the values exactly (16-bit PNG codes, Terrain-RGB)
+    /// round them; without it such a write is refused.
+    pub round: bool,
 }
 
 /// Read a raster file, choosing the format by extension unless `opts.format` says.
@@ -186,9 +189,9 @@ pub(crate) fn encode_path(
                     && raster.mapping == png::TERRAIN_RGB
                     && raster.sample_type == SampleType::F32);
             let (png, sidecar) = if terrain_rgb {
-                png::write_terrain_rgb(raster)?
+                png::write_terrain_rgb(raster, opts.round)?
             } else {
-                png::write(raster, opts.png_mapping.as_ref())?
+                png::write(raster, opts.png_mapping.as_ref(), opts.round)?
             };
             let mut v = one(png);
             if let Some(s) = sidecar {

@@ -220,6 +220,16 @@ pub fn read(
             )));
         }
     };
+    let says_trgb = mapping.is_some_and(|m| {
+        m.scale == TERRAIN_RGB.scale && m.offset == TERRAIN_RGB.offset && m.nodata_code.is_none()
+    });
+    if is_rgb && !terrain_rgb && !says_trgb {
+        // Colour PNGs are pictures far more often than height maps: reading one as heights
+        // is a choice the caller makes.
+        return Err(Error::unsupported(format!(
+            "{desc} PNG: vtz reads colour PNGs only as Mapbox Terrain-RGB heights; if it is one, say so with --format terrain-rgb"
+        )));
+    }
     if terrain_rgb && !is_rgb {
         return Err(Error::unsupported(format!(
             "Terrain-RGB needs an 8-bit RGB or RGBA PNG, this one is {desc}"
@@ -366,7 +376,11 @@ fn encode_png(buf: &[u8], r: &Raster, ct: ExtendedColorType) -> Result<Vec<u8>> 
 /// `round((value - offset) / scale)` and must fit 0..=65535. Invalid samples get the
 /// mapping's `nodata_code`, else the code of the raster's declared nodata value, else code
 /// 0 or 65535 or another code no valid sample uses.
-pub fn write(r: &Raster, mapping: Option<&PngMapping>) -> Result<(Vec<u8>, Option<Vec<u8>>)> {
+pub fn write(
+    r: &Raster,
+    mapping: Option<&PngMapping>,
+    round: bool,
+) -> Result<(Vec<u8>, Option<Vec<u8>>)> {
     let (scale, offset, mut nodata_code) = match mapping {
         Some(m) => (m.scale, m.offset, m.nodata_code),
         None => (r.mapping.scale, r.mapping.offset, None),
@@ -377,6 +391,7 @@ pub fn write(r: &Raster, mapping: Option<&PngMapping>) -> Result<(Vec<u8>, Optio
     let n = r.len();
     let mut codes = vec![0u16; n];
     let mut used = vec![false; 65536];
+    let mut worst = Rounding::default();
     for (i, &v) in r.data.iter().enumerate() {
         if !r.is_valid(i) {
             continue;
@@ -391,9 +406,15 @@ pub fn write(r: &Raster, mapping: Option<&PngMapping>) -> Result<(Vec<u8>, Optio
             )));
         }
         let c = best_code(approx, 0, 65535, v, decode) as u16;
+        worst.note(i, v, decode(c as u32));
         codes[i] = c;
         used[c as usize] = true;
     }
+    worst.check(
+        r,
+        round,
+        &format!("16-bit PNG codes (value = {offset} + {scale}·code)"),
+    )?;
     let has_invalid = r.valid_count() < n;
     if nodata_code.is_none() {
         if let Some(nd) = r.nodata {
@@ -460,10 +481,44 @@ pub fn write(r: &Raster, mapping: Option<&PngMapping>) -> Result<(Vec<u8>, Optio
     Ok((png, sidecar))
 }
 
+/// The largest change a writer's codes make to a valid sample: nothing about the data
+/// changes silently, so a writer that would round refuses unless the caller allows it.
+#[derive(Default)]
+struct Rounding {
+    worst: Option<(usize, f64, f64)>,
+}
+
+impl Rounding {
+    fn note(&mut self, i: usize, v: f64, stored: f64) {
+        let d = (stored - v).abs();
+        if d > 0.0 && self.worst.is_none_or(|(_, a, b)| d > (b - a).abs()) {
+            self.worst = Some((i, v, stored));
+        }
+    }
+
+    fn check(&self, r: &Raster, round: bool, what: &str) -> Result<()> {
+        match self.worst {
+            Some((i, v, stored)) if !round => {
+                let num = crate::metrics::num;
+                Err(Error::invalid(format!(
+                    "{what} cannot hold these values exactly: sample {i} (row {}, col {}) = {} would become {} (a change of {}); pass --round to accept the rounding, choose --png-scale/--png-offset, or write .tif, .exr or .f32, which keep the values",
+                    i / r.width,
+                    i % r.width,
+                    num(v),
+                    num(stored),
+                    num((stored - v).abs())
+                )))
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
 /// Write a Mapbox Terrain-RGB PNG (RGBA8, alpha 255; invalid samples are (0, 0, 0, 0)),
 /// plus a sidecar holding the georef when the raster has one.
-pub fn write_terrain_rgb(r: &Raster) -> Result<(Vec<u8>, Option<Vec<u8>>)> {
+pub fn write_terrain_rgb(r: &Raster, round: bool) -> Result<(Vec<u8>, Option<Vec<u8>>)> {
     let mut buf = Vec::with_capacity(r.len() * 4);
+    let mut worst = Rounding::default();
     for (i, &v) in r.data.iter().enumerate() {
         if !r.is_valid(i) {
             buf.extend_from_slice(&[0, 0, 0, 0]);
@@ -478,8 +533,10 @@ pub fn write_terrain_rgb(r: &Raster) -> Result<(Vec<u8>, Option<Vec<u8>>)> {
             )));
         }
         let c = best_code(approx, 0, TRGB_MAX_CODE, v, trgb_value);
+        worst.note(i, v, trgb_value(c));
         buf.extend_from_slice(&[(c >> 16) as u8, (c >> 8) as u8, c as u8, 255]);
     }
+    worst.check(r, round, "Terrain-RGB's 0.1 steps")?;
     let png = encode_png(&buf, r, ExtendedColorType::Rgba8)?;
     let sidecar = match &r.georef {
         Some(g) => Some(sidecar_bytes(
@@ -556,7 +613,7 @@ mod tests {
             }
         );
         // Writing with the raster's own mapping: nodata code comes from the declared nodata.
-        let (out, side) = write(&r, None).unwrap();
+        let (out, side) = write(&r, None, false).unwrap();
         assert_eq!(pixels(&out).1, pixels(&png).1);
         let s = parse_sidecar(&side.unwrap(), "test").unwrap();
         assert_eq!(s.mapping, m);
@@ -574,7 +631,7 @@ mod tests {
     fn identity_has_no_sidecar() {
         let r =
             Raster::from_values(2, 2, vec![1.0, 2.0, 3.0, 65535.0], None, SampleType::U16).unwrap();
-        let (png, side) = write(&r, None).unwrap();
+        let (png, side) = write(&r, None, false).unwrap();
         assert!(side.is_none());
         assert_same(
             &r,
@@ -583,7 +640,7 @@ mod tests {
         );
         // u8 rasters are written as 8-bit grey and read back as u8.
         let r = Raster::from_values(2, 1, vec![0.0, 255.0], None, SampleType::U8).unwrap();
-        let (png, side) = write(&r, None).unwrap();
+        let (png, side) = write(&r, None, false).unwrap();
         assert!(side.is_none());
         assert_eq!(pixels(&png).0, ColorType::L8);
         assert_same(
@@ -596,14 +653,14 @@ mod tests {
     #[test]
     fn write_picks_nodata_code_and_checks_range() {
         let r = Raster::from_values(3, 1, vec![0.0, f64::NAN, 7.0], None, SampleType::U16).unwrap();
-        let (png, side) = write(&r, None).unwrap();
+        let (png, side) = write(&r, None, false).unwrap();
         let s = parse_sidecar(&side.unwrap(), "t").unwrap();
         assert_eq!(s.mapping.nodata_code, Some(65535));
         assert_eq!(pixels(&png).1, [0, 65535, 7]);
         let back = read(&png, Some(&s.mapping), false, &opts()).unwrap();
         assert_eq!(back.mask, r.mask);
         let r = Raster::from_values(2, 1, vec![-1.0, 3.0], None, SampleType::I16).unwrap();
-        match write(&r, None) {
+        match write(&r, None, false) {
             Err(Error::InvalidArgument { what }) => {
                 assert!(what.contains("--png-offset"), "{what}")
             }
@@ -616,7 +673,7 @@ mod tests {
         };
         // value -1 → code 9 = the nodata code
         assert!(matches!(
-            write(&r, Some(&m)),
+            write(&r, Some(&m), false),
             Err(Error::InvalidArgument { .. })
         ));
         let m = PngMapping {
@@ -625,7 +682,7 @@ mod tests {
             nodata_code: None,
         };
         assert!(matches!(
-            write(&r, Some(&m)),
+            write(&r, Some(&m), false),
             Err(Error::InvalidArgument { .. })
         ));
     }
@@ -644,15 +701,23 @@ mod tests {
             wkt: None,
             geokeys: None,
         });
-        let (png, side) = write_terrain_rgb(&r).unwrap();
+        let (png, side) = write_terrain_rgb(&r, false).unwrap();
         let s = parse_sidecar(&side.unwrap(), "t").unwrap();
-        let mut back = read(&png, None, false, &opts()).unwrap();
+        // A colour PNG is heights only when the caller or vtz's own sidecar says so.
+        let refused = read(&png, None, false, &opts()).unwrap_err().to_string();
+        assert!(refused.contains("--format terrain-rgb"), "{refused}");
+        let mut back = read(&png, Some(&s.mapping), false, &opts()).unwrap();
+        assert_same(
+            &back,
+            &read(&png, None, true, &opts()).unwrap(),
+            "sidecar or flag",
+        );
         assert_eq!(back.mapping, TERRAIN_RGB);
         back.georef = s.georef;
         assert_same(&r, &back, "png round trip");
         let r = Raster::from_values(1, 1, vec![-10000.1], None, SampleType::F32).unwrap();
         assert!(matches!(
-            write_terrain_rgb(&r),
+            write_terrain_rgb(&r, false),
             Err(Error::InvalidArgument { .. })
         ));
     }
@@ -726,7 +791,7 @@ mod tests {
             let r = read(&bytes, None, false, &opts()).unwrap();
             assert_eq!(r.sample_type, SampleType::U16);
             assert_eq!(raster_bits(&r), raw_bits(dir, name), "{name}");
-            let (png, side) = write(&r, None).unwrap();
+            let (png, side) = write(&r, None, false).unwrap();
             assert!(side.is_none());
             assert_eq!(pixels(&png), pixels(&bytes), "{name}: codes differ");
             assert_same(
@@ -781,7 +846,7 @@ mod tests {
         let name = "mapbox_fuji_terrainrgb";
         let src = dir.join(format!("{name}.png"));
         let bytes = std::fs::read(&src).unwrap();
-        let r = read(&bytes, None, false, &opts()).unwrap();
+        let r = read(&bytes, None, true, &opts()).unwrap();
         assert_eq!(r.sample_type, SampleType::F32);
         assert_eq!(r.mapping, TERRAIN_RGB);
         assert_eq!(raster_bits(&r), raw_bits(&dir, name));
@@ -790,9 +855,9 @@ mod tests {
             ..Default::default()
         };
         assert_same(&r, &read_path(&src, &forced).unwrap(), "png round trip");
-        let (png, side) = write_terrain_rgb(&r).unwrap();
+        let (png, side) = write_terrain_rgb(&r, false).unwrap();
         assert!(side.is_none());
-        let back = read(&png, None, false, &opts()).unwrap();
+        let back = read(&png, None, true, &opts()).unwrap();
         assert_same(&r, &back, "png round trip");
         // Same RGB codes as the source (alpha is 255 in both).
         assert_eq!(pixels(&png), pixels(&bytes));

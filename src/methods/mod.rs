@@ -143,6 +143,9 @@ pub(crate) struct Identity {
     pub section: SectionKind,
     /// The section type's name in the spec, `vtz info` and `--section`.
     pub section_name: &'static str,
+    /// Byte offset in its payloads of the stored max error (`f64`, spec/FORMAT.md), which
+    /// `vtz verify` checks the decode against.
+    pub bound_at: usize,
 }
 
 /// What one method is to the codec: its identity, its encoder, its decoder (full and
@@ -277,6 +280,8 @@ pub(crate) struct DecodeJob<'a> {
     /// layer; `None` for every method today).
     #[allow(dead_code)]
     pub base: Option<&'a [f64]>,
+    /// Fraction of the decode done (0..1); methods that take long call it as they go.
+    pub progress: &'a (dyn Fn(f64) + Sync),
 }
 
 /// A method's own rate control: a parameter where larger means smaller files, bisected

@@ -281,6 +281,36 @@ impl Raster {
         self.mask.as_ref().is_none_or(|m| m[i])
     }
 
+    /// The samples of window `w` (inside the raster) as a raster of their own: same type,
+    /// mapping and nodata, no georef.
+    pub(crate) fn crop(&self, w: Window) -> Raster {
+        let rows = w.y..w.y + w.height;
+        let pick = |i: usize| (i % w.width + w.x) + (i / w.width + w.y) * self.width;
+        debug_assert!(w.x + w.width <= self.width && rows.end <= self.height);
+        let data = (0..w.width * w.height)
+            .map(|i| self.data[pick(i)])
+            .collect();
+        let mask = self
+            .mask
+            .as_ref()
+            .map(|m| (0..w.width * w.height).map(|i| m[pick(i)]).collect());
+        Raster {
+            mapping: self.mapping,
+            ..Raster::from_parts(w.width, w.height, data, mask, self.nodata, self.sample_type)
+        }
+    }
+
+    /// The spacing of the values the source can hold, when it has one: the mapping's step
+    /// for integer sample types, 1 for float data whose valid samples are all whole numbers.
+    /// A bound below half of it can only be met by the exact values.
+    pub(crate) fn value_step(&self) -> Option<f64> {
+        if self.sample_type.is_integer() {
+            return Some(self.mapping.scale.abs());
+        }
+        let whole = (0..self.len()).all(|i| !self.is_valid(i) || self.data[i].fract() == 0.0);
+        whole.then_some(1.0)
+    }
+
     /// Number of valid samples.
     pub fn valid_count(&self) -> usize {
         match &self.mask {

@@ -27,7 +27,9 @@ impl ErrorBound {
             .parse()
             .map_err(|_| Error::invalid(format!("'{s}' is not an error bound (e.g. 2.5 or 1%)")))?;
         if !(v >= 0.0 && v.is_finite()) {
-            return Err(Error::invalid(format!("error bound '{s}' must be ≥ 0")));
+            return Err(Error::invalid(format!(
+                "error bound '{s}' must be a finite number ≥ 0 (e.g. 2.5 or 1%)"
+            )));
         }
         Ok(if pct {
             ErrorBound::PercentOfRange(v)

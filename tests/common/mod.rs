@@ -13,7 +13,7 @@ use vtz::{DecodeOptions, EncodeOptions, ErrorBound, Method, Raster, SampleType};
 // ---------------------------------------------------------------- random numbers
 
 mod shared;
-pub use shared::{Rng, assert_same};
+pub use shared::{Rng, assert_same, skip};
 
 // ---------------------------------------------------------------- synthetic terrain
 
@@ -192,7 +192,7 @@ pub fn shared_corpus() -> Option<PathBuf> {
     if p.join("manifest.json").exists() {
         Some(p)
     } else {
-        eprintln!("skipped: {} is absent", p.display());
+        skip(&format!("{} is absent", p.display()));
         None
     }
 }

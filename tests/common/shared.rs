@@ -55,3 +55,19 @@ pub fn assert_same(a: &Raster, b: &Raster, what: &str) {
         }
     }
 }
+
+/// A test that cannot run here says so where a CI log shows it: straight to the process's
+/// stderr (the test harness captures only `print!`/`eprint!`), naming the test. With
+/// `VTZ_REQUIRE_SHARED=1` (set by `.ci/run`, where `../shared` is present) missing data
+/// fails the test instead.
+pub fn skip(why: &str) {
+    use std::io::Write;
+    let name = std::thread::current()
+        .name()
+        .unwrap_or("a test")
+        .to_string();
+    if std::env::var_os("VTZ_REQUIRE_SHARED").is_some_and(|v| v == "1") {
+        panic!("{name}: {why} (VTZ_REQUIRE_SHARED=1)");
+    }
+    let _ = writeln!(std::io::stderr(), "SKIPPED {name}: {why}");
+}

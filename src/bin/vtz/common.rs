@@ -2,6 +2,7 @@
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc;
 use std::time::Duration;
 use vtz::formats::{Format, PngMapping, ReadOptions, WriteOptions};
@@ -50,27 +51,42 @@ impl Ui {
 }
 
 impl Ui {
-    /// Run `f` with a progress bar fed by its callback (fraction 0..1); shown after a second
-    /// on a terminal, hidden with --quiet.
-    pub fn progress<T>(&self, msg: &str, f: impl FnOnce(&mut dyn FnMut(f64)) -> T) -> T {
+    /// Run `f` with a progress bar fed by its callback (fraction 0..1): percentage, elapsed
+    /// time and ETA, drawn from the first second on a terminal (ticking even while the work
+    /// reports nothing), never moving backwards; hidden with --quiet.
+    pub fn progress<T>(&self, msg: &str, f: impl FnOnce(&(dyn Fn(f64) + Sync)) -> T) -> T {
         if self.quiet {
-            return f(&mut |_| {});
+            return f(&|_| {});
         }
         let pb = ProgressBar::with_draw_target(Some(1000), ProgressDrawTarget::hidden());
         pb.set_style(
-            ProgressStyle::with_template("{msg} [{bar:30}] {percent}% {elapsed}")
-                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            ProgressStyle::with_template(
+                "{msg} [{bar:30}] {percent:>3}% {elapsed_precise} ETA {eta_precise}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
         );
         pb.set_message(msg.to_string());
-        let start = std::time::Instant::now();
-        let mut shown = false;
-        let out = f(&mut |frac: f64| {
-            if !shown && start.elapsed() > Duration::from_secs(1) {
-                pb.set_draw_target(ProgressDrawTarget::stderr());
-                shown = true;
+        let (tx, rx) = mpsc::channel::<()>();
+        let pb2 = pb.clone();
+        let t = std::thread::spawn(move || {
+            if rx.recv_timeout(Duration::from_secs(1)).is_err() {
+                pb2.set_draw_target(ProgressDrawTarget::stderr());
+                pb2.enable_steady_tick(Duration::from_millis(200));
+                let _ = rx.recv();
             }
-            pb.set_position((frac.clamp(0.0, 1.0) * 1000.0) as u64);
         });
+        let high = AtomicU64::new(0);
+        let out = f(&|frac: f64| {
+            // Monotonic: a later, lower estimate never moves the bar back.
+            let pos = (frac.clamp(0.0, 1.0) * 1000.0) as u64;
+            let prev = high.fetch_max(pos, Ordering::Relaxed);
+            if pos > prev {
+                pb.set_position(pos);
+            }
+        });
+        let _ = tx.send(());
+        let _ = t.join();
         pb.finish_and_clear();
         out
     }
@@ -88,6 +104,10 @@ pub struct RasterOpts {
     /// 16-bit PNG code that marks nodata (e.g. 0).
     #[arg(long, value_name = "CODE")]
     pub png_nodata: Option<u16>,
+    /// Writing: let PNG output round values its codes cannot hold (16-bit codes, Terrain-RGB's
+    /// 0.1 m steps); without it such a write is refused, never silently rounded.
+    #[arg(long)]
+    pub round: bool,
 }
 
 impl RasterOpts {
@@ -122,6 +142,7 @@ pub fn write_options(format: Option<Format>, force: bool, opts: &RasterOpts) -> 
         format,
         force,
         png_mapping: opts.mapping(),
+        round: opts.round,
     }
 }
 
@@ -141,6 +162,40 @@ pub fn check_distinct(input: &Path, output: &Path) -> Result<()> {
             output.display()
         )));
     }
+    Ok(())
+}
+
+/// Everything about an output that can fail, checked before the work starts: not the input,
+/// not an existing file without `--force`, in a directory that exists and takes new files
+/// (probed with a file created and removed at once).
+pub fn check_output(input: &Path, output: &Path, force: bool) -> Result<()> {
+    check_distinct(input, output)?;
+    if !force && output.exists() {
+        return Err(Error::invalid(format!(
+            "{} exists (use --force to overwrite)",
+            output.display()
+        )));
+    }
+    let dir = match output.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(Error::io(
+            format!("output {}", output.display()),
+            std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                format!("the directory {} does not exist", dir.display()),
+            ),
+        ));
+    }
+    let probe = dir.join(format!(".vtz-probe-{}", std::process::id()));
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+        .map_err(|e| Error::io(format!("cannot write in {}", dir.display()), e))?;
+    let _ = std::fs::remove_file(&probe);
     Ok(())
 }
 

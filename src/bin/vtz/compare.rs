@@ -27,7 +27,7 @@ pub struct Args {
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
     if let Some(png) = &a.png {
         common::check_distinct(&a.a, png)?;
-        common::check_distinct(&a.b, png)?;
+        common::check_output(&a.b, png, a.force)?;
     }
     let ra = ui.busy("reading", || common::read_raster(&a.a, None, &a.raster))?;
     let rb = ui.busy("reading", || common::read_raster(&a.b, None, &a.raster))?;

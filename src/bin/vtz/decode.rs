@@ -22,7 +22,7 @@ pub struct Args {
     #[arg(long, value_name = "N")]
     pub sites: Option<usize>,
     /// Sites section: decode only the first K levels.
-    #[arg(long, value_name = "K")]
+    #[arg(long, value_name = "K", conflicts_with = "sites")]
     pub level: Option<usize>,
     /// Decode only the window x,y,width,height (in samples).
     #[arg(long, value_name = "X,Y,W,H")]
@@ -39,7 +39,7 @@ pub struct Args {
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let format = common::parse_format(a.format.as_deref())?;
-    common::check_distinct(&a.input, &a.output)?;
+    common::check_output(&a.input, &a.output, a.force)?;
     let bytes = common::read_file(&a.input)?;
     let mut opts = DecodeOptions::default();
     if let Some(s) = a.section.as_deref() {
@@ -50,7 +50,10 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     opts.window = a.window.as_deref().map(str::parse).transpose()?;
     opts.scale = a.scale.as_deref().map(str::parse).transpose()?;
     let raster = ui
-        .busy("decoding", || vtz::decode_with(&bytes, &opts))
+        .progress("decoding", |p| {
+            let mut d = vtz::Decoder::with_limits(std::io::Cursor::new(&bytes), opts.limits)?;
+            d.options(opts.clone()).decode_progress(p)
+        })
         .map_err(|e| e.context(a.input.display()))?;
     let wo = common::write_options(format, a.force, &a.raster);
     ui.busy("writing", || vtz::write_path(&raster, &a.output, &wo))?;

@@ -2,6 +2,7 @@
 
 use crate::common::{self, RasterOpts, Ui};
 use std::path::PathBuf;
+use vtz::metrics::num;
 use vtz::{EncodeOptions, ErrorBound, Result};
 
 #[derive(clap::Args)]
@@ -23,8 +24,9 @@ pub struct Args {
     /// Aim for a file of at most this many bytes (the smallest bound that fits).
     #[arg(long, value_name = "BYTES", conflicts_with_all = ["max_error", "lossless", "sites", "rmse"])]
     pub size: Option<u64>,
-    /// Sibson sites: stop at N sites (a coarser surface; the bound is what it achieves).
-    #[arg(long, value_name = "N")]
+    /// Sibson sites: stop at N sites (a coarser surface; the bound is what it achieves, so
+    /// it excludes --max-error and --rmse).
+    #[arg(long, value_name = "N", conflicts_with_all = ["max_error", "rmse"])]
     pub sites: Option<usize>,
     /// Sibson sites: stop when the RMSE is at most E data units or E% of the range.
     #[arg(long, value_name = "E")]
@@ -66,13 +68,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         .output
         .clone()
         .unwrap_or_else(|| common::default_output(&a.input, "vtz"));
-    common::check_distinct(&a.input, &output)?;
-    if !a.force && output.exists() {
-        return Err(vtz::Error::invalid(format!(
-            "{} exists (use --force to overwrite)",
-            output.display()
-        )));
-    }
+    common::check_output(&a.input, &output, a.force)?;
     let raster = ui.busy("reading", || {
         common::read_raster(&a.input, format, &a.raster)
     })?;
@@ -91,15 +87,37 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     opts.max_error = bound;
     opts.methods = vtz::Method::parse_list(&a.method)?;
     opts.params.sibson.rmse = a.rmse.as_deref().map(ErrorBound::parse).transpose()?;
+    if opts
+        .params
+        .sibson
+        .rmse
+        .is_some_and(|r| r.absolute(raster.valid_range()) == 0.0)
+    {
+        return Err(vtz::Error::invalid(
+            "--rmse 0 asks the sites to reproduce every sample, which costs more than storing \
+             them: use --lossless",
+        ));
+    }
     opts.params.sibson.sites = a.sites;
     opts.params.sibson.norm = norm;
     opts.params.sibson.step_factor = a.step_factor;
     opts.params.fis.k = a.fis_k;
     opts.params.fis.s = a.fis_s;
     opts.target_bytes = target_bytes;
-    let (bytes, report) = ui.progress("encoding", |p| vtz::encode_progress(&raster, &opts, p))?;
+    let (bytes, report) = ui.progress("encoding", |p| {
+        vtz::encode_progress(&raster, &opts, &mut |f| p(f))
+    })?;
     let n = bytes.len() as u64;
     vtz::formats::write_file(&output, bytes, a.force)?;
+    for (m, why) in &report.skipped {
+        ui.say(format!("note: no {} section: {why}", m.name()));
+    }
+    let raw = raster.len() as u64 * raster.sample_type.bits() as u64 / 8;
+    if n > raw && !a.json {
+        ui.say(format!(
+            "warning: {n} bytes is more than the raw samples ({raw} bytes); --lossless or another --method may store this raster smaller"
+        ));
+    }
     let bps = vtz::metrics::bits_per_sample(n, raster.len());
     let range = raster.valid_range().map_or(0.0, |(lo, hi)| hi - lo);
     let pct = if range > 0.0 {
@@ -117,6 +135,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             "max_error": report.max_error, "max_error_pct": pct,
             "lossless": report.max_error == 0.0,
             "method": report.method.name(),
+            "skipped": report.skipped.iter().map(|(m, why)| serde_json::json!({"method": m.name(), "reason": why})).collect::<Vec<_>>(),
             "sites": sites,
             "levels": stat("levels").map(common::stat_json),
             "position_bits_per_site": stat("position_bits_per_site").map(common::stat_json),
@@ -127,7 +146,11 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         let what = if report.max_error == 0.0 && sites.is_none() {
             "lossless".to_string()
         } else {
-            format!("max error ≤ {} ({pct:.3} % of range)", report.max_error)
+            format!(
+                "max error ≤ {} ({} % of range)",
+                num(report.max_error),
+                num(pct)
+            )
         };
         let levels = match stat("levels") {
             Some(vtz::StatValue::Counts(l)) => l.len(),

@@ -10,6 +10,7 @@ mod info;
 mod rd;
 mod render;
 mod sites;
+mod verify;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -41,6 +42,9 @@ enum Cmd {
     Sites(sites::Args),
     /// Draw a raster or .vtz as a shaded relief PNG (optionally with its sites).
     Render(render::Args),
+    /// Check .vtz files end to end: every checksum, every section decoded, the decodes
+    /// against the stored mask, range and max errors; one line per file, exit 1 on a problem.
+    Verify(verify::Args),
     /// Rate–distortion table of methods × error bounds on rasters (CSV, plot, baseline check).
     Rd(rd::Args),
 }
@@ -57,6 +61,7 @@ fn main() -> ExitCode {
         Cmd::Sites(a) => sites::run(a, &ui),
         Cmd::Render(a) => render::run(a, &ui),
         Cmd::Rd(a) => rd::run(a, &ui),
+        Cmd::Verify(a) => verify::run(a, &ui),
     };
     match res {
         Ok(()) => ExitCode::SUCCESS,

@@ -181,13 +181,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let outputs: Vec<&PathBuf> = [&a.csv, &a.md, &a.png].into_iter().flatten().collect();
     for o in &outputs {
         for f in &a.files {
-            common::check_distinct(f, o)?;
-        }
-        if !a.force && o.exists() {
-            return Err(Error::invalid(format!(
-                "{} exists (use --force to overwrite)",
-                o.display()
-            )));
+            common::check_output(f, o, a.force)?;
         }
     }
     let mut names = BTreeSet::new();

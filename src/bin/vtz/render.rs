@@ -49,7 +49,7 @@ pub struct Args {
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let format = common::parse_format(a.format.as_deref())?;
-    common::check_distinct(&a.input, &a.output)?;
+    common::check_output(&a.input, &a.output, a.force)?;
     if a.sites && !common::is_vtz(&a.input, format) {
         return Err(Error::invalid("--sites needs a .vtz input"));
     }

@@ -18,6 +18,9 @@ pub struct Args {
 }
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
+    if let Some(p) = &a.output {
+        common::check_output(&a.input, p, a.force)?;
+    }
     let bytes = common::read_file(&a.input)?;
     let mut dec = vtz::Decoder::with_limits(std::io::Cursor::new(bytes), Limits::default())
         .map_err(|e| e.context(a.input.display()))?;

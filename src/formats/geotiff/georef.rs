@@ -217,7 +217,7 @@ pub(super) fn geo_tags(georef: Option<&Georef>) -> Result<GeoTags> {
 /// Make GTRasterTypeGeoKey in a verbatim directory agree with the raster type. A missing key
 /// means PixelIsArea, so it is only added for PixelIsPoint.
 fn set_raster_type_key(dir: &mut Vec<u16>, raster_type: u16) -> Result<()> {
-    let bad = || Error::invalid("GeoKey directory is malformed");
+    let bad = || Error::corrupt("the stored GeoKey directory is malformed");
     let n = usize::from(*dir.get(3).ok_or_else(bad)?);
     let keys_end = 4 + 4 * n;
     if dir.len() < keys_end {

@@ -26,6 +26,7 @@ impl Representation for Fis {
             aliases: &["fractal"],
             section: SectionKind(4),
             section_name: "fis",
+            bound_at: 32,
         }
     }
     fn own_options(&self, p: &MethodParams) -> Option<&'static str> {

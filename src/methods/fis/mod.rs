@@ -719,9 +719,18 @@ pub(crate) fn encode_with(
         }
     }
     best.ok_or_else(|| {
-        Error::invalid(format!(
-            "FIS cannot meet a max error of {e} at any spacing k ≥ 2 (closest: {closest:.6})"
-        ))
+        let e = crate::metrics::num(e);
+        if closest.is_finite() {
+            Error::unmet(format!(
+                "FIS cannot meet a max error of {e} at any spacing k ≥ 2 (the closest reached {})",
+                crate::metrics::num(closest)
+            ))
+        } else {
+            Error::unmet(format!(
+                "FIS cannot meet a max error of {e}: no spacing k ≥ 2 fits a {}x{} raster",
+                r.width, r.height
+            ))
+        }
     })
 }
 

@@ -15,6 +15,7 @@ impl Representation for Grid {
             aliases: &[],
             section: SectionKind(2),
             section_name: "grid",
+            bound_at: 20,
         }
     }
     fn lossless_default(&self) -> bool {

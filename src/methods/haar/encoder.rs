@@ -138,7 +138,7 @@ fn prepare(r: &Raster, step: f64, offset: f64, levels: usize) -> Result<Prepared
         if r.is_valid(i) {
             let c = ((v - offset) / step).round();
             if c.is_nan() || c.abs() > MAX_CODE {
-                return Err(Error::invalid(format!(
+                return Err(Error::unmet(format!(
                     "haar: sample {v} is more than 2^50 lattice steps of {step} from {offset} \
                      (the bound is too small for this value range; use the grid method)"
                 )));
@@ -185,7 +185,7 @@ impl Prepared<'_> {
             let ok = |k: i64| lat.value(k).is_some_and(|x| (x - v).abs() <= e);
             let k0 = ((v - lat.offset) / lat.step).round() as i64;
             let Some(k) = [k0, k0 - 1, k0 + 1].into_iter().find(|&k| ok(k)) else {
-                return Err(Error::invalid(format!(
+                return Err(Error::unmet(format!(
                     "haar: the value lattice (step {}) alone breaks the max error {e}",
                     lat.step
                 )));
@@ -375,7 +375,7 @@ fn choose_lattice(r: &Raster, fine: Option<f64>) -> Result<(f64, f64)> {
     }
     match fine {
         Some(u) if u > 0.0 && u.is_finite() => Ok((u, r.valid_range().map_or(0.0, |(lo, _)| lo))),
-        _ => Err(Error::invalid(
+        _ => Err(Error::unmet(
             "the haar method is lossless only on integer-valued data; give a max error \
              or use the grid method for lossless float data",
         )),
@@ -485,7 +485,7 @@ fn encode_bound(
     let err = prep.max_error(&rec).unwrap_or(f64::INFINITY);
     if err.is_nan() || err > e {
         // Cannot happen: every code was checked against its interval.
-        return Err(Error::invalid(format!(
+        return Err(Error::unmet(format!(
             "haar: the closed loop measured {err} over the bound {e}"
         )));
     }

@@ -25,6 +25,7 @@ impl Representation for Haar {
             aliases: &["wavelet"],
             section: SectionKind(5),
             section_name: "haar",
+            bound_at: 20,
         }
     }
     fn own_options(&self, p: &MethodParams) -> Option<&'static str> {

@@ -243,7 +243,7 @@ mod tests {
         let r = Raster::from_values(4, 4, vec![0.5; 16], None, SampleType::F32).unwrap();
         assert!(matches!(
             encode(&r, &HaarParams::default()),
-            Err(Error::InvalidArgument { .. })
+            Err(Error::Unmet { .. })
         ));
         // ... but a bound works.
         let (payload, err) = encode(&r, &HaarParams { max_error: 0.01 }).unwrap();

@@ -34,6 +34,7 @@ impl Representation for Sibson {
             aliases: &[],
             section: SectionKind(3),
             section_name: "sites",
+            bound_at: 20,
         }
     }
     fn own_options(&self, p: &MethodParams) -> Option<&'static str> {
@@ -48,9 +49,23 @@ impl Representation for Sibson {
     }
     fn encode(&self, job: &EncodeJob, progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
         let o = &job.params.sibson;
+        if job.max_error == Some(0.0) && self.own_options(job.params).is_none() {
+            // A bound was given but resolves to 0 (a percent of a constant or empty raster's
+            // range, or 0 itself): sites approximate, they do not store every sample.
+            return Err(Error::unmet(
+                "the sibson method needs a bound above 0, and the bound given is 0 here (a percent of the range of a raster whose valid samples are all equal, or none); use --lossless",
+            ));
+        }
         if job.lossless() && self.own_options(job.params).is_none() {
             return Err(Error::invalid(
                 "the sibson method needs --max-error, --rmse or --sites",
+            ));
+        }
+        if o.sites.is_some() && (job.max_error.is_some() || o.rmse.is_some()) {
+            // A site count stops the refinement wherever the error is; a bound keeps going
+            // until it holds. Together one would silently override the other.
+            return Err(Error::invalid(
+                "--sites stops at N sites whatever the error: it excludes --max-error and --rmse",
             ));
         }
         let sp = SitesParams {
@@ -90,6 +105,7 @@ impl Representation for Sibson {
             } else {
                 job.threads
             },
+            job.progress,
         )
     }
     fn progressive(&self) -> bool {

@@ -234,13 +234,29 @@ pub fn decode_sites(
     if sum_bytes != r.remaining() as u64 {
         return Err(r.corrupt("level lengths do not add up to the section length"));
     }
+    // A prefix never stops inside the first level: it holds the hull, without which the
+    // surface would not cover the raster. A request outside what the file holds is an error,
+    // never silently clamped.
+    let first = dir.first().map_or(0, |d| d.0);
+    if let Some(k) = max_levels {
+        if k == 0 || k > dir.len() {
+            return Err(Error::invalid(format!(
+                "--level {k}: the file's sites section has levels 1 to {}",
+                dir.len()
+            )));
+        }
+    }
+    if let Some(k) = max_sites {
+        if (k as u64) < first as u64 || k as u64 > total {
+            return Err(Error::invalid(format!(
+                "--sites {k}: the file's sites section holds {total} sites, of which the first {first} (the hull) always decode; choose {first} to {total}"
+            )));
+        }
+    }
     let width = header.width as usize;
     let mut st = SiteStream::new(step, offset);
     let mut sites = Vec::new();
     let mut levels = Vec::new();
-    // A prefix never stops inside the first level: it holds the hull, without which the
-    // surface would not cover the raster.
-    let first = dir.first().map_or(0, |d| d.0);
     let want_sites = max_sites.unwrap_or(usize::MAX).max(first);
     let want_levels = max_levels.unwrap_or(usize::MAX).max(1);
     for (li, &(count, bytes)) in dir.iter().enumerate() {
@@ -311,26 +327,38 @@ pub fn render(
     mask: Option<&[bool]>,
     window: (usize, usize, usize, usize),
     threads: usize,
+    progress: &(dyn Fn(f64) + Sync),
 ) -> Result<Vec<f64>> {
     let (x0, y0, w, h) = window;
     let width = header.width as usize;
     let valid = |x: i64, y: i64| mask.is_none_or(|m| m[y as usize * width + x as usize]);
     let threads = threads.clamp(1, 64).min(h.div_ceil(64).max(1));
     let band = h.div_ceil(threads);
+    // Each band is evaluated in chunks of rows, reporting the rows done after each (a window
+    // evaluates to exactly the samples of the whole, so chunking changes no value).
+    let rows_done = std::sync::atomic::AtomicUsize::new(0);
+    let eval_band = |by: usize, bh: usize| -> Option<Vec<f64>> {
+        const CHUNK: usize = 64;
+        let mut out = Vec::with_capacity(w * bh);
+        let mut y = 0;
+        while y < bh {
+            let ch = CHUNK.min(bh - y);
+            out.extend(d.surface.eval_window(x0 as i64, (y0 + by + y) as i64, w, ch, valid)?);
+            y += ch;
+            let done = rows_done.fetch_add(ch, std::sync::atomic::Ordering::Relaxed) + ch;
+            progress(done as f64 / h.max(1) as f64);
+        }
+        Some(out)
+    };
     let bands: Vec<Option<Vec<f64>>> = if threads == 1 {
-        vec![d.surface.eval_window(x0 as i64, y0 as i64, w, h, valid)]
+        vec![eval_band(0, h)]
     } else {
         std::thread::scope(|sc| {
             let handles: Vec<_> = (0..threads)
                 .map(|k| {
                     let (by, bh) = (k * band, band.min(h.saturating_sub(k * band)));
-                    let surface = &d.surface;
-                    sc.spawn(move || {
-                        if bh == 0 {
-                            return Some(Vec::new());
-                        }
-                        surface.eval_window(x0 as i64, (y0 + by) as i64, w, bh, valid)
-                    })
+                    let eval_band = &eval_band;
+                    sc.spawn(move || eval_band(by, bh))
                 })
                 .collect();
             handles
@@ -539,6 +567,7 @@ pub fn encode(
             mask_vec.as_deref(),
             (0, 0, w, h),
             default_threads(),
+            &|_| {},
         )?;
         let mut errs = Errors::default();
         let mut bad: Vec<(u32, i64)> = Vec::new();
@@ -553,7 +582,7 @@ pub fn encode(
         }
         if bad.is_empty() || round == MAX_REPAIRS {
             if !bad.is_empty() {
-                return Err(Error::invalid(format!(
+                return Err(Error::unmet(format!(
                     "the sites method could not meet the bound after {MAX_REPAIRS} repair rounds"
                 )));
             }
@@ -572,7 +601,7 @@ pub fn encode(
         let have: std::collections::HashSet<u32> = levels.iter().flatten().map(|s| s.0).collect();
         bad.retain(|s| !have.contains(&s.0));
         if bad.is_empty() {
-            return Err(Error::invalid(
+            return Err(Error::unmet(
                 "the sites method cannot meet this bound with its height step",
             ));
         }

@@ -1,0 +1,77 @@
+//! `vtz verify`: check .vtz files end to end, one line per file.
+
+use crate::common::Ui;
+use std::path::PathBuf;
+use vtz::metrics::num;
+use vtz::{Limits, Result};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The .vtz files to check.
+    #[arg(required = true)]
+    pub files: Vec<PathBuf>,
+    /// Print one JSON object per file on stdout instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Check every file; exit 1 when any has a problem (all are checked and reported).
+pub fn run(a: Args, ui: &Ui) -> Result<()> {
+    let mut failed = 0usize;
+    for f in &a.files {
+        let res = ui.busy(&format!("verifying {}", f.display()), || check(f));
+        match (&res, a.json) {
+            (Ok(v), false) => {
+                let surfaces: Vec<String> = v
+                    .surfaces
+                    .iter()
+                    .map(|(i, name, b)| format!("[{i}] {name} ≤ {}", num(*b)))
+                    .collect();
+                let unknown = if v.unknown.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        ", {} unknown optional section(s) checksummed only",
+                        v.unknown.len()
+                    )
+                };
+                println!(
+                    "{}: ok ({} sections: checksums, decodes, {} valid samples within the stored range and max error of {}{unknown})",
+                    f.display(),
+                    v.sections,
+                    v.valid,
+                    surfaces.join(", ")
+                );
+            }
+            (Ok(v), true) => println!(
+                "{}",
+                serde_json::json!({
+                    "file": f, "ok": true, "sections": v.sections, "valid_samples": v.valid,
+                    "surfaces": v.surfaces.iter().map(|(i, name, b)| serde_json::json!({
+                        "index": i, "type": name, "max_error": b})).collect::<Vec<_>>(),
+                    "unknown_sections": v.unknown,
+                })
+            ),
+            (Err(e), false) => println!("{}: FAILED: {e}", f.display()),
+            (Err(e), true) => println!(
+                "{}",
+                serde_json::json!({"file": f, "ok": false, "error": e.to_string()})
+            ),
+        }
+        failed += usize::from(res.is_err());
+    }
+    if failed > 0 {
+        return Err(vtz::Error::corrupt(format!(
+            "{failed} of {} files failed verification",
+            a.files.len()
+        )));
+    }
+    Ok(())
+}
+
+fn check(path: &PathBuf) -> Result<vtz::Verified> {
+    let file =
+        std::fs::File::open(path).map_err(|e| vtz::Error::io(path.display().to_string(), e))?;
+    let mut d = vtz::Decoder::with_limits(std::io::BufReader::new(file), Limits::default())?;
+    d.verify()
+}
