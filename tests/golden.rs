@@ -146,14 +146,21 @@ fn the_gdal_metadata_section_is_optional_and_strict_about_utf8() {
     let bytes = std::fs::read(dir().join("v1_kauai_crop_gdalmeta.vtz")).unwrap();
     let info = vtz::info(&bytes, vtz::Limits::default()).unwrap();
     let s = info.sections.last().unwrap();
-    assert_eq!((s.name.as_str(), s.code, s.required), ("gdal-metadata", 8, false));
+    assert_eq!(
+        (s.name.as_str(), s.code, s.required),
+        ("gdal-metadata", 8, false)
+    );
     assert_eq!(s.bytes, GDAL_METADATA.len() as u64);
     let full = vtz::decode(&bytes).unwrap();
 
     // A decoder that predates type 8 sees an unknown optional section: it skips it and
     // decodes the same samples (simulated with a private type code no decoder knows).
     let mut c = container::read(&bytes, vtz::Limits::default()).unwrap();
-    let i = c.sections.iter().position(|s| s.kind == SectionKind::GDAL_METADATA).unwrap();
+    let i = c
+        .sections
+        .iter()
+        .position(|s| s.kind == SectionKind::GDAL_METADATA)
+        .unwrap();
     c.sections[i].kind = SectionKind(0x8001);
     let skipped = vtz::decode(&container::write(&c.header, &c.sections)).unwrap();
     assert_eq!(skipped.gdal_metadata, None);
@@ -164,5 +171,8 @@ fn the_gdal_metadata_section_is_optional_and_strict_about_utf8() {
     c.sections[i].payload = b"<GDALMetadata>\xff</GDALMetadata>".to_vec();
     let e = vtz::decode(&container::write(&c.header, &c.sections)).unwrap_err();
     assert!(matches!(e, vtz::Error::Corrupt { .. }), "{e}");
-    assert!(e.to_string().contains("gdal-metadata") && e.to_string().contains("UTF-8"), "{e}");
+    assert!(
+        e.to_string().contains("gdal-metadata") && e.to_string().contains("UTF-8"),
+        "{e}"
+    );
 }
