@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{ok, tmp, vtz};
+use common::{decode_opts, encode_opts, ok, tmp, vtz};
 use serde_json::Value;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -552,4 +552,34 @@ fn gdal_metadata_reaches_gdal_beside_png_exr_and_asc() {
             assert_eq!(s.metadata["DataType"], "Generic", "{ext}");
         }
     }
+}
+
+#[test]
+fn a_window_or_a_resampling_drops_the_sources_statistics() {
+    let mut r = read(&corpus(TUJUNGA));
+    let with_stats = META.replace(
+        "</GDALMetadata>",
+        "  <Item name=\"STATISTICS_MAXIMUM\" sample=\"0\">2311</Item>\n</GDALMetadata>",
+    );
+    r.gdal_metadata = Some(with_stats.clone());
+    let bytes = vtz::encode(&r, &Default::default()).unwrap();
+    // The whole raster: its statistics still hold, the text is verbatim.
+    let whole = vtz::decode(&bytes).unwrap();
+    assert_eq!(whole.gdal_metadata.as_deref(), Some(with_stats.as_str()));
+    let window = vtz::Window {
+        x: 5,
+        y: 5,
+        width: 40,
+        height: 30,
+    };
+    let part = vtz::decode_with(&bytes, &decode_opts(|o| o.window = Some(window))).unwrap();
+    assert_eq!(part.gdal_metadata.as_deref(), Some(META));
+    // Resampling needs a sites section: a small part, encoded by sibson.
+    let mut small = part;
+    small.gdal_metadata = Some(with_stats);
+    let opts = encode_opts(&[vtz::Method::SIBSON], Some(vtz::ErrorBound::Abs(5.0)));
+    let bytes = vtz::encode(&small, &opts).unwrap();
+    let half_scale = vtz::Scale { num: 1, den: 2 };
+    let half = vtz::decode_with(&bytes, &decode_opts(|o| o.scale = Some(half_scale))).unwrap();
+    assert_eq!(half.gdal_metadata.as_deref(), Some(META));
 }

@@ -57,7 +57,7 @@ pub(crate) fn decode_reader<R: Read + Seek>(
 ) -> Result<Raster> {
     let header = rd.header().clone();
     let mask = rd.read_mask()?;
-    let gdal_metadata = rd.read_gdal_metadata()?;
+    let mut gdal_metadata = rd.read_gdal_metadata()?;
     let idx = section_index(rd, opts.section)?;
     let entry = rd
         .entries()
@@ -98,6 +98,10 @@ pub(crate) fn decode_reader<R: Read + Seek>(
             ow.checked_mul(oh),
             rd.limits(),
         )?;
+    }
+    // A part or a resampling of the raster has other statistics than the whole.
+    if opts.scale.is_some() || (win.width, win.height) != (w, h) {
+        gdal_metadata = gdal_metadata.map(|x| crate::formats::without_statistics(&x).into_owned());
     }
     let payload = rd.read_section(idx)?;
     let job = DecodeJob {

@@ -22,6 +22,7 @@ use crate::error::{Error, Result};
 use crate::model::{DEFAULT_MAX_SAMPLES, Raster, SampleType, ValueMapping};
 pub(crate) use output::OutputFile;
 pub use output::write_file;
+pub(crate) use pam::without_statistics;
 pub use png::PngMapping;
 use std::path::Path;
 

@@ -18,6 +18,7 @@
 
 use crate::formats::crs;
 use crate::model::{Georef, RasterType};
+use std::borrow::Cow;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -317,6 +318,48 @@ fn parse_gdal_metadata(xml: &str) -> Option<Vec<Item>> {
     Some(items)
 }
 
+/// GDAL_METADATA without its `STATISTICS_*` items (minimum, maximum, mean, standard
+/// deviation, valid percent), which describe the whole source raster: a window or a resampled
+/// decode has other statistics, and GDAL would report the stale ones as its own. The rest is
+/// kept byte for byte; a document vtz cannot parse is kept whole.
+pub(crate) fn without_statistics(xml: &str) -> Cow<'_, str> {
+    let mut out = String::with_capacity(xml.len());
+    let mut rest = xml;
+    let mut changed = false;
+    while let Some(i) = rest.find("<Item") {
+        let Some(close) = rest[i..].find('>').map(|c| i + c) else {
+            return Cow::Borrowed(xml);
+        };
+        let tag = &rest[i + "<Item".len()..close];
+        let (attrs, end) = match tag.strip_suffix('/') {
+            Some(a) => (a, close + 1),
+            None => match rest[close..].find("</Item>") {
+                Some(e) => (tag, close + e + "</Item>".len()),
+                None => return Cow::Borrowed(xml),
+            },
+        };
+        let Some(attrs) = parse_attrs(attrs) else {
+            return Cow::Borrowed(xml);
+        };
+        let is_stat = attrs
+            .iter()
+            .any(|(k, v)| *k == "name" && v.starts_with("STATISTICS_"));
+        if is_stat {
+            // Drop the item with the white space that led up to it (its line).
+            out.push_str(rest[..i].trim_end_matches([' ', '\t', '\r', '\n']));
+            changed = true;
+        } else {
+            out.push_str(&rest[..end]);
+        }
+        rest = &rest[end..];
+    }
+    if !changed {
+        return Cow::Borrowed(xml);
+    }
+    out.push_str(rest);
+    Cow::Owned(out)
+}
+
 /// `k="v" k2='v2'` pairs.
 fn parse_attrs(mut s: &str) -> Option<Vec<(&str, String)>> {
     let mut out = Vec::new();
@@ -436,6 +479,27 @@ mod tests {
         ] {
             assert_eq!(parse_gdal_metadata(bad), None, "{bad}");
         }
+    }
+
+    #[test]
+    fn statistics_are_dropped_the_rest_kept() {
+        let xml = "<GDALMetadata>\n  <Item name=\"DataType\">Generic</Item>\n  \
+            <Item name=\"STATISTICS_MAXIMUM\" sample=\"0\">2311</Item>\n  \
+            <Item name=\"STATISTICS_MEAN\" sample=\"0\"/>\n  \
+            <Item name=\"UNITTYPE\" sample=\"0\" role=\"unittype\">m</Item>\n</GDALMetadata>\n";
+        assert_eq!(
+            without_statistics(xml),
+            "<GDALMetadata>\n  <Item name=\"DataType\">Generic</Item>\n  \
+             <Item name=\"UNITTYPE\" sample=\"0\" role=\"unittype\">m</Item>\n</GDALMetadata>\n"
+        );
+        // Nothing to drop, or nothing vtz can parse: the very same text.
+        assert!(matches!(without_statistics(META), Cow::Borrowed(_)));
+        let odd = "<GDALMetadata><Item name=STATISTICS_MEAN>1</Item></GDALMetadata>";
+        assert_eq!(without_statistics(odd), odd);
+        assert_eq!(
+            without_statistics("<Item name=\"STATISTICS_X\">"),
+            "<Item name=\"STATISTICS_X\">"
+        );
     }
 
     #[test]

@@ -202,7 +202,8 @@ pub struct Raster {
     /// verbatim. It holds what GDAL knows beyond the samples (band description, units, scale
     /// and offset, free items), so it is kept through `.vtz` and written back to GeoTIFF, and
     /// translated into the `.aux.xml` of formats without such a tag. vtz never interprets it
-    /// when encoding; samples are not rescaled by its scale/offset.
+    /// when encoding; samples are not rescaled by its scale/offset. A windowed or resampled
+    /// decode drops its `STATISTICS_*` items, which describe the whole source.
     pub gdal_metadata: Option<String>,
 }
 
