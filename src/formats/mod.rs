@@ -3,7 +3,7 @@
 //! and `vtz::write_path` (the codec), which also read and write `.vtz`.
 //!
 //! Besides vtz's own sidecars, outputs get what GDAL reads where the format has no place for
-//! georeferencing ([`pam`]): `.asc` a `.prj` ([`crs`]); PNG a world file and a PAM
+//! georeferencing (module `pam`): `.asc` a `.prj` (module `crs`); PNG a world file and a PAM
 //! `.aux.xml`; EXR a PAM `.aux.xml`; each also an `.aux.xml` for GDAL_METADATA.
 
 pub(crate) mod asc;
