@@ -33,14 +33,16 @@ fn assert_bits_equal(a: &Raster, b: &Raster) {
     assert_eq!(a.mapping, b.mapping);
 }
 
-/// Whether a section of this type may be the primary one (any but the mask and metadata).
+/// Whether a section of this type may be the primary one (any but the mask, metadata and
+/// gdal-metadata).
 fn can_be_primary(k: SectionKind) -> bool {
-    k != SectionKind::MASK && k != SectionKind::METADATA
+    k != SectionKind::MASK && k != SectionKind::METADATA && k != SectionKind::GDAL_METADATA
 }
 
-/// Whether this version knows the type: mask, grid, sites, fis, haar, residual, metadata.
+/// Whether this version knows the type: mask, grid, sites, fis, haar, residual, metadata,
+/// gdal-metadata.
 fn is_known(k: SectionKind) -> bool {
-    (1..=7).contains(&k.code())
+    (1..=8).contains(&k.code())
 }
 
 /// The bytes every `.vtz` file starts with.

@@ -33,28 +33,45 @@ fn source() -> vtz::Raster {
     vtz::decode_with(&bytes, &opts).unwrap()
 }
 
-/// (name, options, bound checked against the source; 0 = identical).
-fn cases() -> Vec<(&'static str, EncodeOptions, f64)> {
+/// GDAL_METADATA of the gdal-metadata golden file: a description with a non-ASCII letter
+/// (the ʻokina), a unit and a dataset item, as GDAL writes them.
+const GDAL_METADATA: &str = "<GDALMetadata>\n  <Item name=\"DataType\">Generic</Item>\n  \
+    <Item name=\"DESCRIPTION\" sample=\"0\" role=\"description\">Elevation (SRTM3, Kaua\u{2bb}i)</Item>\n  \
+    <Item name=\"UNITTYPE\" sample=\"0\" role=\"unittype\">m</Item>\n</GDALMetadata>\n";
+
+/// (name, options, bound checked against the source (0 = identical), the source's GDAL
+/// metadata).
+fn cases() -> Vec<(&'static str, EncodeOptions, f64, Option<&'static str>)> {
     vec![
         (
             "v1_kauai_crop_grid",
             encode_opts(&[Method::GRID], None),
             0.0,
+            None,
         ),
         (
             "v1_kauai_crop_sites",
             encode_opts(&[Method::SIBSON], Some(ErrorBound::Abs(8.0))),
             8.0,
+            None,
         ),
         (
             "v1_kauai_crop_fis",
             encode_opts(&[Method::FIS], Some(ErrorBound::Abs(150.0))),
             150.0,
+            None,
         ),
         (
             "v1_kauai_crop_haar",
             encode_opts(&[Method::HAAR], Some(ErrorBound::Abs(8.0))),
             8.0,
+            None,
+        ),
+        (
+            "v1_kauai_crop_gdalmeta",
+            encode_opts(&[Method::GRID], None),
+            0.0,
+            Some(GDAL_METADATA),
         ),
     ]
 }
@@ -69,7 +86,7 @@ fn as_f32_bytes(r: &vtz::Raster) -> Vec<u8> {
 #[test]
 fn golden_files_decode_to_their_expected_samples() {
     let bless = std::env::var_os("VTZ_BLESS_GOLDEN").is_some();
-    for (name, opts, bound) in cases() {
+    for (name, opts, bound, gdal_metadata) in cases() {
         let vtz_path = dir().join(format!("{name}.vtz"));
         let exp_path = dir().join(format!("{name}.expected.f32"));
         if !vtz_path.exists() {
@@ -78,7 +95,8 @@ fn golden_files_decode_to_their_expected_samples() {
                 "{} is missing (VTZ_BLESS_GOLDEN=1 writes it)",
                 vtz_path.display()
             );
-            let src = source();
+            let mut src = source();
+            src.gdal_metadata = gdal_metadata.map(String::from);
             let bytes = vtz::encode(&src, &opts).unwrap();
             std::fs::write(&vtz_path, &bytes).unwrap();
             std::fs::write(&exp_path, as_f32_bytes(&vtz::decode(&bytes).unwrap())).unwrap();
@@ -90,6 +108,7 @@ fn golden_files_decode_to_their_expected_samples() {
         assert_eq!(r.sample_type, vtz::SampleType::I16, "{name}");
         let g = r.georef.as_ref().expect("georef");
         assert_eq!(g.epsg, Some(4326));
+        assert_eq!(r.gdal_metadata.as_deref(), gdal_metadata, "{name}");
         assert!(r.valid_count() < r.len(), "{name}: the crop has voids");
         let expected = std::fs::read(&exp_path).unwrap();
         assert!(
@@ -110,7 +129,7 @@ fn golden_files_decode_to_their_expected_samples() {
 
 #[test]
 fn every_proper_prefix_of_the_golden_files_is_rejected() {
-    for (name, _, _) in cases() {
+    for (name, _, _, _) in cases() {
         let bytes = std::fs::read(dir().join(format!("{name}.vtz"))).unwrap();
         for n in 0..bytes.len() {
             assert!(
@@ -119,4 +138,41 @@ fn every_proper_prefix_of_the_golden_files_is_rejected() {
             );
         }
     }
+}
+
+#[test]
+fn the_gdal_metadata_section_is_optional_and_strict_about_utf8() {
+    use vtz::internals::container::{self, SectionKind};
+    let bytes = std::fs::read(dir().join("v1_kauai_crop_gdalmeta.vtz")).unwrap();
+    let info = vtz::info(&bytes, vtz::Limits::default()).unwrap();
+    let s = info.sections.last().unwrap();
+    assert_eq!(
+        (s.name.as_str(), s.code, s.required),
+        ("gdal-metadata", 8, false)
+    );
+    assert_eq!(s.bytes, GDAL_METADATA.len() as u64);
+    let full = vtz::decode(&bytes).unwrap();
+
+    // A decoder that predates type 8 sees an unknown optional section: it skips it and
+    // decodes the same samples (simulated with a private type code no decoder knows).
+    let mut c = container::read(&bytes, vtz::Limits::default()).unwrap();
+    let i = c
+        .sections
+        .iter()
+        .position(|s| s.kind == SectionKind::GDAL_METADATA)
+        .unwrap();
+    c.sections[i].kind = SectionKind(0x8001);
+    let skipped = vtz::decode(&container::write(&c.header, &c.sections)).unwrap();
+    assert_eq!(skipped.gdal_metadata, None);
+    assert_eq!(as_f32_bytes(&skipped), as_f32_bytes(&full));
+
+    // Invalid UTF-8 (checksums recomputed, so only the text is wrong) is a corrupt file.
+    c.sections[i].kind = SectionKind::GDAL_METADATA;
+    c.sections[i].payload = b"<GDALMetadata>\xff</GDALMetadata>".to_vec();
+    let e = vtz::decode(&container::write(&c.header, &c.sections)).unwrap_err();
+    assert!(matches!(e, vtz::Error::Corrupt { .. }), "{e}");
+    assert!(
+        e.to_string().contains("gdal-metadata") && e.to_string().contains("UTF-8"),
+        "{e}"
+    );
 }

@@ -58,6 +58,7 @@ pub(crate) fn decode_reader<R: Read + Seek>(
 ) -> Result<Raster> {
     let header = rd.header().clone();
     let mask = rd.read_mask()?;
+    let mut gdal_metadata = rd.read_gdal_metadata()?;
     let idx = section_index(rd, opts.section)?;
     let entry = rd
         .entries()
@@ -113,6 +114,10 @@ pub(crate) fn decode_reader<R: Read + Seek>(
             rd.limits(),
         )?;
     }
+    // A part or a resampling of the raster has other statistics than the whole.
+    if opts.scale.is_some() || (win.width, win.height) != (w, h) {
+        gdal_metadata = gdal_metadata.map(|x| crate::formats::without_statistics(&x).into_owned());
+    }
     let payload = rd.read_section(idx)?;
     let job = DecodeJob {
         payload: &payload,
@@ -126,7 +131,7 @@ pub(crate) fn decode_reader<R: Read + Seek>(
         progress,
     };
     if let Some(s) = opts.scale {
-        return decode_scaled(method, &job, s);
+        return decode_scaled(method, &job, s, gdal_metadata);
     }
     let data = method.decode(&job)?;
     let mut r = Raster {
@@ -138,6 +143,7 @@ pub(crate) fn decode_reader<R: Read + Seek>(
         sample_type: header.sample_type,
         mapping: header.mapping,
         georef: header.georef.as_ref().map(|g| g.window(win.x, win.y)),
+        gdal_metadata,
     };
     r.normalize_mask();
     Ok(r)
@@ -150,7 +156,12 @@ fn scaled_size(w: usize, h: usize, s: Scale) -> (u64, u64) {
     (f(w), f(h))
 }
 
-fn decode_scaled(m: &dyn Representation, job: &DecodeJob, s: Scale) -> Result<Raster> {
+fn decode_scaled(
+    m: &dyn Representation,
+    job: &DecodeJob,
+    s: Scale,
+    gdal_metadata: Option<String>,
+) -> Result<Raster> {
     let header: &Header = job.header;
     let (data, mask, ow, oh) = m.decode_scaled(job, s.num, s.den)?;
     let f = s.den as f64 / s.num as f64;
@@ -172,6 +183,7 @@ fn decode_scaled(m: &dyn Representation, job: &DecodeJob, s: Scale) -> Result<Ra
         sample_type: header.sample_type,
         mapping: header.mapping,
         georef,
+        gdal_metadata,
     };
     r.normalize_mask();
     Ok(r)

@@ -178,6 +178,14 @@ pub(crate) fn encode_once(
             payload: meta.as_bytes().to_vec(),
         });
     }
+    if let Some(xml) = &raster.gdal_metadata {
+        // Optional (flags clear): samples decode without it, and older decoders skip it.
+        sections.push(Section {
+            kind: SectionKind::GDAL_METADATA,
+            flags: 0,
+            payload: xml.as_bytes().to_vec(),
+        });
+    }
     Ok((container::write(&header, &sections), report))
 }
 

@@ -37,6 +37,8 @@ impl SectionKind {
     pub const RESIDUAL: SectionKind = SectionKind(6);
     /// Free-form UTF-8 JSON metadata.
     pub const METADATA: SectionKind = SectionKind(7);
+    /// GDAL's metadata XML (GeoTIFF tag 42112 `GDAL_METADATA`), UTF-8, verbatim.
+    pub const GDAL_METADATA: SectionKind = SectionKind(8);
 
     /// The type code as stored.
     pub fn code(self) -> u16 {
@@ -46,12 +48,22 @@ impl SectionKind {
     pub fn from_code(c: u16) -> SectionKind {
         SectionKind(c)
     }
+    /// Whether a section of this type may be the primary one: any type but the framing
+    /// types that hold data *about* the raster (mask, metadata, gdal-metadata). Unknown types
+    /// may be, so that a future representation can be primary.
+    pub fn may_be_primary(self) -> bool {
+        !matches!(
+            self,
+            SectionKind::MASK | SectionKind::METADATA | SectionKind::GDAL_METADATA
+        )
+    }
     /// The name of a framing or reserved type, `None` for the methods' types.
     fn framing_name(self) -> Option<&'static str> {
         match self {
             SectionKind::MASK => Some("mask"),
             SectionKind::RESIDUAL => Some("residual"),
             SectionKind::METADATA => Some("metadata"),
+            SectionKind::GDAL_METADATA => Some("gdal-metadata"),
             _ => None,
         }
     }
@@ -313,7 +325,7 @@ impl<R: Read + Seek> ContainerReader<R> {
         }
         if count > 0 || header.primary != 0 {
             match entries.get(header.primary as usize) {
-                Some(e) if e.kind != SectionKind::MASK && e.kind != SectionKind::METADATA => {}
+                Some(e) if e.kind.may_be_primary() => {}
                 Some(e) => {
                     return Err(Error::corrupt(format!(
                         "primary section {} is a {} section, not a representation",
@@ -358,6 +370,21 @@ impl<R: Read + Seek> ContainerReader<R> {
             Some(i) => Ok(Some(mask::decode(&self.read_section(i)?, n)?)),
             None => Ok(None),
         }
+    }
+
+    /// GDAL's metadata XML from the first gdal-metadata section, `None` when there is none.
+    /// The payload must be UTF-8 (spec/FORMAT.md): anything else is a corrupt file.
+    pub fn read_gdal_metadata(&mut self) -> Result<Option<String>> {
+        let Some(i) = self.find(SectionKind::GDAL_METADATA) else {
+            return Ok(None);
+        };
+        let bytes = self.read_section(i)?;
+        String::from_utf8(bytes).map(Some).map_err(|e| {
+            Error::corrupt(format!(
+                "section {i} (gdal-metadata) is not UTF-8 (invalid byte at payload offset {})",
+                e.utf8_error().valid_up_to()
+            ))
+        })
     }
 
     /// Read section `i`'s payload and check its checksum.

@@ -5,7 +5,8 @@
 //! are read as f64; a grid whose numbers are all integers in i32 range, written without a
 //! decimal point, is [`SampleType::I32`], anything else is [`SampleType::F32`] with every
 //! value rounded once to f32. Corner headers give a [`RasterType::Area`] georef, centre
-//! headers a [`RasterType::Point`] one; the format carries no CRS.
+//! headers a [`RasterType::Point`] one. The grid itself carries no CRS: `formats::read_path`
+//! takes it from a `NAME.prj` beside the file, and `formats::encode_path` writes one.
 
 use crate::error::{Error, Result};
 use crate::formats::ReadOptions;

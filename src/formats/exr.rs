@@ -3,7 +3,9 @@
 //! Written files hold a single f32 channel named `Y` (ZIP-compressed scan lines), invalid
 //! samples as NaN, and the custom layer attributes `vtz_nodata` (f64: the declared nodata
 //! value) and `vtz_georef` (text: the georef as the shared sidecar json object, see
-//! [`crate::formats::sidecar`]) when the raster has them.
+//! [`crate::formats::sidecar`]) when the raster has them. The header's attributes are in name
+//! order, so the bytes are the same on every run. GDAL reads neither attribute: the writer
+//! of the file set (`formats::encode_path`) adds a PAM `NAME.exr.aux.xml` for it.
 //!
 //! Reading takes the only channel of a single-part flat image, or the first channel named
 //! `height`, `elevation`, `Z`, `Y` or `R` (case-insensitive) when there are several. f32 and
@@ -211,7 +213,62 @@ pub fn write(r: &Raster) -> Result<Vec<u8>> {
         .write()
         .to_buffered(&mut out)
         .map_err(|e| Error::invalid(format!("EXR encoding failed: {e}")))?;
-    Ok(out.into_inner())
+    let mut bytes = out.into_inner();
+    sort_header_attributes(&mut bytes)?;
+    Ok(bytes)
+}
+
+/// Put the header's attributes in name order, so the same raster gives the same bytes.
+///
+/// The exr crate keeps custom attributes (`vtz_nodata`, `vtz_georef`) in a `HashMap` with a
+/// random seed and writes them in its iteration order, which changes from run to run. EXR
+/// readers take a header's attributes in any order, and sorting them in place keeps the
+/// header's length, so the offset table and the chunks after it stay valid as written.
+fn sort_header_attributes(bytes: &mut [u8]) -> Result<()> {
+    let bad = || Error::invalid("EXR encoding produced a header vtz cannot parse");
+    // Magic and version field; a multi-part file would have several headers.
+    let flags = u32::from_le_bytes(
+        bytes
+            .get(4..8)
+            .ok_or_else(bad)?
+            .try_into()
+            .map_err(|_| bad())?,
+    );
+    if flags & 0x1000 != 0 {
+        return Err(bad());
+    }
+    let nul = |from: usize| -> Result<usize> {
+        let rel = bytes
+            .get(from..)
+            .ok_or_else(bad)?
+            .iter()
+            .position(|&b| b == 0);
+        rel.map(|r| from + r).ok_or_else(bad)
+    };
+    let start = 8;
+    let mut pos = start;
+    let mut spans = Vec::new();
+    while *bytes.get(pos).ok_or_else(bad)? != 0 {
+        let name_end = nul(pos)?;
+        let type_end = nul(name_end + 1)?;
+        let size = bytes.get(type_end + 1..type_end + 5).ok_or_else(bad)?;
+        let size = i32::from_le_bytes(size.try_into().map_err(|_| bad())?);
+        let size = usize::try_from(size).map_err(|_| bad())?;
+        let end = type_end + 5 + size;
+        if end > bytes.len() {
+            return Err(bad());
+        }
+        spans.push((pos, name_end, end));
+        pos = end;
+    }
+    let mut sorted: Vec<(usize, usize, usize)> = spans.clone();
+    sorted.sort_by(|a, b| bytes[a.0..a.1].cmp(&bytes[b.0..b.1]));
+    let attrs: Vec<u8> = sorted
+        .iter()
+        .flat_map(|&(a, _, e)| bytes[a..e].iter().copied())
+        .collect();
+    bytes[start..pos].copy_from_slice(&attrs);
+    Ok(())
 }
 
 #[cfg(test)]
@@ -324,6 +381,50 @@ mod tests {
         let r = read(&b, &opts()).unwrap();
         assert_eq!(r.sample_type, SampleType::I32);
         assert_eq!(r.data, [7.0; 6]);
+    }
+
+    #[test]
+    fn output_bytes_are_the_same_every_time() {
+        let mut r = random_raster(9, 13, 7, Some(-9999.0));
+        r.georef = Some(Georef {
+            origin: [376313.6554542635, 3807917.8276283755],
+            pixel_size: [30.0, 30.0],
+            raster_type: RasterType::Area,
+            epsg: Some(32611),
+            wkt: None,
+            geokeys: None,
+        });
+        // Each write builds a new HashMap with a new random seed: with two custom attributes,
+        // 24 equal writes by chance would be a 2^-23 event.
+        let first = write(&r).unwrap();
+        for _ in 0..24 {
+            assert!(
+                write(&r).unwrap() == first,
+                "EXR bytes differ between writes"
+            );
+        }
+        assert_same(
+            &r,
+            &read(&first, &opts()).unwrap(),
+            "sorted header reads back",
+        );
+        // The attribute names, as stored, are in order.
+        let mut names = Vec::new();
+        let mut pos = 8;
+        while first[pos] != 0 {
+            let n = first[pos..].iter().position(|&b| b == 0).unwrap();
+            let t = first[pos + n + 1..].iter().position(|&b| b == 0).unwrap();
+            let at = pos + n + 1 + t + 1;
+            let size = i32::from_le_bytes(first[at..at + 4].try_into().unwrap()) as usize;
+            names.push(String::from_utf8(first[pos..pos + n].to_vec()).unwrap());
+            pos = at + 4 + size;
+        }
+        assert!(
+            names.contains(&ATTR_NODATA.to_string()) && names.contains(&ATTR_GEOREF.to_string())
+        );
+        let mut sorted = names.clone();
+        sorted.sort();
+        assert_eq!(names, sorted);
     }
 
     #[test]

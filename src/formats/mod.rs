@@ -1,21 +1,28 @@
 //! Raster file formats: one file per format, each reading into a [`Raster`] and writing from
 //! one; sidecars and atomic output beside them. Callers reach them through `vtz::read_path`
 //! and `vtz::write_path` (the codec), which also read and write `.vtz`.
+//!
+//! Besides vtz's own sidecars, outputs get what GDAL reads where the format has no place for
+//! georeferencing (module `pam`): `.asc` a `.prj` (module `crs`); PNG a world file and a PAM
+//! `.aux.xml`; EXR a PAM `.aux.xml`; each also an `.aux.xml` for GDAL_METADATA.
 
 pub(crate) mod asc;
+mod crs;
 pub(crate) mod exr;
 pub(crate) mod geotiff;
 pub(crate) mod hgt;
 mod output;
+mod pam;
 pub(crate) mod png;
 pub(crate) mod raw;
 mod samples;
 mod sidecar;
 
 use crate::error::{Error, Result};
-use crate::model::{DEFAULT_MAX_SAMPLES, Raster, SampleType};
+use crate::model::{DEFAULT_MAX_SAMPLES, Raster, SampleType, ValueMapping};
 pub(crate) use output::OutputFile;
 pub use output::write_file;
+pub(crate) use pam::without_statistics;
 pub use png::PngMapping;
 use std::path::Path;
 
@@ -145,7 +152,14 @@ pub(crate) fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
             let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
             hgt::read(&bytes, name, opts)
         }
-        Format::Asc => asc::read(&bytes, opts),
+        Format::Asc => asc::read(&bytes, opts).and_then(|mut r| {
+            // The CRS, when a `.prj` lies beside the grid (GDAL's convention).
+            if let (Some(g), Some((wkt, epsg))) = (r.georef.as_mut(), read_prj(path)?) {
+                g.wkt = Some(wkt);
+                g.epsg = epsg;
+            }
+            Ok(r)
+        }),
         Format::RawF32 => {
             let json_path = path.with_extension("json");
             let json = std::fs::read(&json_path)
@@ -188,10 +202,31 @@ pub(crate) fn encode_path(
                 || (opts.png_mapping.is_none()
                     && raster.mapping == png::TERRAIN_RGB
                     && raster.sample_type == SampleType::F32);
-            let (png, sidecar) = if terrain_rgb {
-                png::write_terrain_rgb(raster, opts.round)?
+            let georef = raster.georef.as_ref();
+            let (png, sidecar, pam) = if terrain_rgb {
+                let (png, sidecar) = png::write_terrain_rgb(raster, opts.round)?;
+                // RGBA: GDAL sees four bands and takes voids from alpha; the PAM places it.
+                let pam = pam::Pam {
+                    georef,
+                    ..Default::default()
+                };
+                (png, sidecar, pam)
             } else {
-                png::write(raster, opts.png_mapping.as_ref(), opts.round)?
+                let (png, sidecar, m) =
+                    png::write_mapped(raster, opts.png_mapping.as_ref(), opts.round)?;
+                let vm = ValueMapping {
+                    scale: m.scale,
+                    offset: m.offset,
+                };
+                // GDAL reads the codes: its nodata is the nodata code, the mapping its
+                // offset and scale.
+                let pam = pam::Pam {
+                    georef,
+                    nodata: m.nodata_code.map(f64::from),
+                    offset_scale: (!vm.is_identity()).then_some((m.offset, m.scale)),
+                    gdal_metadata: raster.gdal_metadata.as_deref(),
+                };
+                (png, sidecar, pam)
             };
             let mut v = one(png);
             if let Some(s) = sidecar {
@@ -200,11 +235,46 @@ pub(crate) fn encode_path(
                     bytes: s,
                 });
             }
+            if let Some(g) = georef {
+                v.push(OutputFile {
+                    path: pam::world_file_path(path),
+                    bytes: pam::world_file(g),
+                });
+            }
+            push_pam(&mut v, path, &pam);
             v
         }
-        Format::Exr => one(exr::write(raster)?),
+        Format::Exr => {
+            let mut v = one(exr::write(raster)?);
+            // The EXR holds NaN wherever a sample is missing, whatever nodata was declared.
+            let has_invalid = raster.valid_count() < raster.len();
+            let pam = pam::Pam {
+                georef: raster.georef.as_ref(),
+                nodata: (has_invalid || raster.nodata.is_some()).then_some(f64::NAN),
+                offset_scale: None,
+                gdal_metadata: raster.gdal_metadata.as_deref(),
+            };
+            push_pam(&mut v, path, &pam);
+            v
+        }
         Format::Hgt => one(hgt::write(raster)?),
-        Format::Asc => one(asc::write(raster)?),
+        Format::Asc => {
+            let mut v = one(asc::write(raster)?);
+            // The header places the grid and declares its nodata; the CRS goes in the .prj,
+            // GDAL_METADATA (when there is any) in the PAM.
+            if let Some(prj) = raster.georef.as_ref().and_then(crs::prj_bytes) {
+                v.push(OutputFile {
+                    path: path.with_extension("prj"),
+                    bytes: prj,
+                });
+            }
+            let pam = pam::Pam {
+                gdal_metadata: raster.gdal_metadata.as_deref(),
+                ..Default::default()
+            };
+            push_pam(&mut v, path, &pam);
+            v
+        }
         Format::RawF32 => {
             let (f32s, json) = raw::write(raster)?;
             vec![
@@ -220,6 +290,33 @@ pub(crate) fn encode_path(
         }
         Format::Vtz => return Err(not_here()),
     })
+}
+
+/// Add the PAM `.aux.xml` of the file at `path` when it has anything to say.
+fn push_pam(v: &mut Vec<OutputFile>, path: &Path, p: &pam::Pam) {
+    if let Some(bytes) = pam::aux_xml(p) {
+        v.push(OutputFile {
+            path: pam::aux_path(path),
+            bytes,
+        });
+    }
+}
+
+/// The CRS of the `.prj` beside `path` (`NAME.prj`, else `NAME.PRJ`): its text and EPSG code;
+/// `None` when there is no such file.
+fn read_prj(path: &Path) -> Result<Option<(String, Option<u32>)>> {
+    for ext in ["prj", "PRJ"] {
+        let p = path.with_extension(ext);
+        match std::fs::read(&p) {
+            Ok(b) => {
+                let (text, epsg) = crs::parse_prj(&b);
+                return Ok((!text.is_empty()).then_some((text, epsg)));
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(Error::io(format!("projection file {}", p.display()), e)),
+        }
+    }
+    Ok(None)
 }
 
 /// Write a raster file (and its sidecar), atomically: see [`output::write_files`].

@@ -376,11 +376,14 @@ fn encode_png(buf: &[u8], r: &Raster, ct: ExtendedColorType) -> Result<Vec<u8>> 
 /// `round((value - offset) / scale)` and must fit 0..=65535. Invalid samples get the
 /// mapping's `nodata_code`, else the code of the raster's declared nodata value, else code
 /// 0 or 65535 or another code no valid sample uses.
-pub fn write(
+///
+/// Also gives the mapping (with the nodata code) the codes were written with, which the PAM
+/// file tells GDAL.
+pub(crate) fn write_mapped(
     r: &Raster,
     mapping: Option<&PngMapping>,
     round: bool,
-) -> Result<(Vec<u8>, Option<Vec<u8>>)> {
+) -> Result<(Vec<u8>, Option<Vec<u8>>, PngMapping)> {
     let (scale, offset, mut nodata_code) = match mapping {
         Some(m) => (m.scale, m.offset, m.nodata_code),
         None => (r.mapping.scale, r.mapping.offset, None),
@@ -468,17 +471,17 @@ pub fn write(
         let buf: Vec<u8> = codes.iter().flat_map(|c| c.to_ne_bytes()).collect();
         encode_png(&buf, r, ExtendedColorType::L16)?
     };
+    let m = PngMapping {
+        scale,
+        offset,
+        nodata_code,
+    };
     let sidecar = if !vm.is_identity() || nodata_code.is_some() || r.georef.is_some() {
-        let m = PngMapping {
-            scale,
-            offset,
-            nodata_code,
-        };
         Some(sidecar_bytes(&m, r.georef.as_ref())?)
     } else {
         None
     };
-    Ok((png, sidecar))
+    Ok((png, sidecar, m))
 }
 
 /// The largest change a writer's codes make to a valid sample: nothing about the data
@@ -550,6 +553,16 @@ pub fn write_terrain_rgb(r: &Raster, round: bool) -> Result<(Vec<u8>, Option<Vec
         None => None,
     };
     Ok((png, sidecar))
+}
+
+/// [`write_mapped`] without the mapping.
+#[cfg(test)]
+fn write(
+    r: &Raster,
+    mapping: Option<&PngMapping>,
+    round: bool,
+) -> Result<(Vec<u8>, Option<Vec<u8>>)> {
+    write_mapped(r, mapping, round).map(|(png, sidecar, _)| (png, sidecar))
 }
 
 #[cfg(test)]

@@ -197,6 +197,14 @@ pub struct Raster {
     pub mapping: ValueMapping,
     /// Where the raster sits, when the source said.
     pub georef: Option<Georef>,
+    /// GDAL's own metadata as the source stored it: the XML of GeoTIFF tag 42112
+    /// (`GDAL_METADATA`, `<GDALMetadata><Item name=".." sample=".." role="..">..</Item>…`),
+    /// verbatim. It holds what GDAL knows beyond the samples (band description, units, scale
+    /// and offset, free items), so it is kept through `.vtz` and written back to GeoTIFF, and
+    /// translated into the `.aux.xml` of formats without such a tag. vtz never interprets it
+    /// when encoding; samples are not rescaled by its scale/offset. A windowed or resampled
+    /// decode drops its `STATISTICS_*` items, which describe the whole source.
+    pub gdal_metadata: Option<String>,
 }
 
 impl Raster {
@@ -263,6 +271,7 @@ impl Raster {
             sample_type,
             mapping: ValueMapping::default(),
             georef: None,
+            gdal_metadata: None,
         }
     }
 

@@ -3,8 +3,8 @@
 use super::nodata::format_nodata;
 use super::tags::{Dec, enc_err, tag_string, tiff_err, write_ascii};
 use super::{
-    TAG_GEO_ASCII_PARAMS, TAG_GEO_DOUBLE_PARAMS, TAG_MODEL_PIXEL_SCALE, TAG_MODEL_TIEPOINT,
-    TAG_MODEL_TRANSFORMATION,
+    TAG_GDAL_METADATA, TAG_GEO_ASCII_PARAMS, TAG_GEO_DOUBLE_PARAMS, TAG_MODEL_PIXEL_SCALE,
+    TAG_MODEL_TIEPOINT, TAG_MODEL_TRANSFORMATION,
 };
 use crate::error::{Error, Result};
 use crate::model::{GeoKeys, Georef, RasterType};
@@ -183,6 +183,8 @@ pub(super) struct GeoTags {
     key_ascii: String,
     /// GDAL_NODATA (NaN is written as "nan").
     pub(super) nodata: Option<f64>,
+    /// GDAL_METADATA XML, verbatim.
+    pub(super) gdal_metadata: Option<String>,
 }
 
 pub(super) fn geo_tags(georef: Option<&Georef>) -> Result<GeoTags> {
@@ -297,6 +299,9 @@ pub(super) fn write_geo_tags<W: Write + Seek, K: TiffKind>(
         if !tags.key_ascii.is_empty() {
             write_ascii(e, Tag::GeoAsciiParamsTag, &tags.key_ascii)?;
         }
+    }
+    if let Some(xml) = &tags.gdal_metadata {
+        write_ascii(e, Tag::from_u16_exhaustive(TAG_GDAL_METADATA), xml)?;
     }
     if let Some(nd) = tags.nodata {
         write_ascii(e, Tag::GdalNodata, &format_nodata(nd))?;

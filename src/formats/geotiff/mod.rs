@@ -9,7 +9,8 @@
 //!
 //! The GeoTIFF tags (ModelPixelScale, ModelTiepoint, ModelTransformation, the three GeoKey
 //! tags and GDAL_NODATA) become a [`Georef`] with the GeoKeys kept verbatim, so a
-//! GeoTIFF → raster → GeoTIFF round trip gives GDAL the same CRS.
+//! GeoTIFF → raster → GeoTIFF round trip gives GDAL the same CRS. GDAL_METADATA (tag 42112,
+//! XML) is kept verbatim in `Raster::gdal_metadata` and written back.
 //!
 //! Writing produces a striped, Deflate-compressed GeoTIFF in the raster's sample type, with
 //! the horizontal predictor for integer samples. (The `tiff` 0.11 encoder has no floating-point
@@ -63,4 +64,6 @@ const TAG_MODEL_TRANSFORMATION: u16 = 34264;
 const TAG_GEO_KEY_DIRECTORY: u16 = 34735;
 const TAG_GEO_DOUBLE_PARAMS: u16 = 34736;
 const TAG_GEO_ASCII_PARAMS: u16 = 34737;
+/// GDAL_METADATA: GDAL's XML of band description, units, scale/offset and free items.
+const TAG_GDAL_METADATA: u16 = 42112;
 const TAG_GDAL_NODATA: u16 = 42113;

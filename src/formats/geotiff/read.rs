@@ -1,9 +1,10 @@
 //! Reading: the pre-checked decode into a [`Raster`].
 
+use super::TAG_GDAL_METADATA;
 use super::georef::read_georef;
 use super::nodata::read_nodata;
 use super::precheck::precheck;
-use super::tags::tiff_err;
+use super::tags::{tag_string, tiff_err};
 use crate::error::{Error, Result};
 use crate::formats::ReadOptions;
 use crate::model::{Raster, SampleType};
@@ -59,6 +60,7 @@ pub fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
 
     let georef = read_georef(&mut dec)?;
     let nodata = read_nodata(&mut dec, st)?;
+    let gdal_metadata = tag_string(&mut dec, TAG_GDAL_METADATA)?;
 
     let mut raster = Raster::from_values(layout.width, layout.height, data, nodata, st).map_err(
         |e| match e {
@@ -69,6 +71,7 @@ pub fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
         },
     )?;
     raster.georef = georef;
+    raster.gdal_metadata = gdal_metadata;
     Ok(raster)
 }
 

@@ -43,6 +43,7 @@ pub fn write(r: &Raster) -> Result<Vec<u8>> {
     let st = output_type(r);
 
     let mut tags = geo_tags(r.georef.as_ref())?;
+    tags.gdal_metadata = r.gdal_metadata.clone();
     let size = (width, height);
     match st {
         SampleType::F32 => {
@@ -295,6 +296,38 @@ mod tests {
                 "{name}"
             );
         });
+    }
+
+    #[test]
+    fn gdal_metadata_is_read_and_written_back_verbatim() {
+        // The corpus GeoTIFF (written by GDAL) carries one dataset item.
+        for_each_corpus_tif(|_, name, src, r| {
+            let raw = raw_tag(src, Tag::Unknown(42112)).map(|v| v.into_string().unwrap());
+            assert_eq!(r.gdal_metadata, raw, "{name}");
+            let out = write(&r).unwrap();
+            let back = raw_tag(&out, Tag::Unknown(42112)).map(|v| v.into_string().unwrap());
+            assert_eq!(back, raw, "{name}: written back");
+        });
+        if let Some(dir) = crate::testutil::corpus() {
+            let src = std::fs::read(dir.join("srtm30m_bigtujunga_utm11.tif")).unwrap();
+            let r = read(&src, &opts()).unwrap();
+            assert_eq!(
+                r.gdal_metadata.as_deref(),
+                Some("<GDALMetadata>\n  <Item name=\"DataType\">Generic</Item>\n</GDALMetadata>\n")
+            );
+        }
+        // Non-ASCII UTF-8 and XML entities survive; none written when there is none.
+        let mut r = small_i16_raster();
+        let xml = "<GDALMetadata>\n  <Item name=\"DESCRIPTION\" sample=\"0\" role=\"description\">Höhe &amp; Tiefe</Item>\n</GDALMetadata>\n";
+        r.gdal_metadata = Some(xml.into());
+        let back = read(&write(&r).unwrap(), &opts()).unwrap();
+        assert_eq!(back.gdal_metadata.as_deref(), Some(xml));
+        r.gdal_metadata = None;
+        assert!(raw_tag(&write(&r).unwrap(), Tag::Unknown(42112)).is_none());
+        // A NUL cannot be stored in a TIFF ASCII tag: a clear error, not a cut string.
+        r.gdal_metadata = Some("a\0b".into());
+        let e = write(&r).unwrap_err();
+        assert!(e.to_string().contains("42112"), "{e}");
     }
 
     // ----- synthetic round trips ----------------------------------------------------------
