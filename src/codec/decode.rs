@@ -77,7 +77,10 @@ pub(crate) fn decode_reader<R: Read + Seek>(
             win.x, win.y, win.width, win.height
         )));
     }
-    if entry.kind == SectionKind::MASK || entry.kind == SectionKind::METADATA {
+    if matches!(
+        entry.kind,
+        SectionKind::MASK | SectionKind::METADATA | SectionKind::GDAL_METADATA
+    ) {
         let methods: Vec<String> = rd
             .entries()
             .iter()
@@ -86,7 +89,7 @@ pub(crate) fn decode_reader<R: Read + Seek>(
             .map(|(i, e)| format!("{i} ({})", e.name))
             .collect();
         return Err(Error::invalid(format!(
-            "section {idx} is the {}, not a surface; choose one of: {}",
+            "section {idx} is the {} section, not a surface; choose one of: {}",
             entry.name,
             methods.join(", ")
         )));

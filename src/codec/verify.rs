@@ -63,6 +63,11 @@ pub(crate) fn verify<R: Read + Seek>(rd: &mut ContainerReader<R>) -> Result<Veri
                 .map_err(|err| at(format!("not JSON: {err}")))?;
             continue;
         }
+        if e.kind == SectionKind::GDAL_METADATA {
+            let p = rd.read_section(i)?;
+            std::str::from_utf8(&p).map_err(|_| at("not UTF-8".into()))?;
+            continue;
+        }
         let Some(m) = methods::by_section(e.kind) else {
             unknown.push(i);
             continue;
