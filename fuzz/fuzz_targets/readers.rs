@@ -12,7 +12,10 @@ fuzz_target!(|data: &[u8]| {
     let Some((&pick, file)) = data.split_first() else {
         return;
     };
-    let opts = ReadOptions { max_samples: Some(1 << 16), ..Default::default() };
+    let opts = ReadOptions {
+        max_samples: Some(1 << 16),
+        ..Default::default()
+    };
     let r = match pick % 7 {
         0 => formats::geotiff(file, &opts),
         1 => formats::png(file, None, false, &opts),

@@ -33,20 +33,43 @@ impl Ui {
                 .unwrap_or_else(|_| ProgressStyle::default_spinner()),
         );
         pb.set_message(msg.to_string());
+        let shown = ShowAfterASecond::new(&pb);
+        let out = f();
+        shown.done();
+        out
+    }
+}
+
+/// Keeps a bar hidden for the first second, then draws it ticking (so elapsed time and the
+/// ETA move even while the work reports nothing) until `done`.
+struct ShowAfterASecond {
+    pb: ProgressBar,
+    tx: mpsc::Sender<()>,
+    t: std::thread::JoinHandle<()>,
+}
+
+impl ShowAfterASecond {
+    fn new(pb: &ProgressBar) -> Self {
         let (tx, rx) = mpsc::channel::<()>();
         let pb2 = pb.clone();
         let t = std::thread::spawn(move || {
             if rx.recv_timeout(Duration::from_secs(1)).is_err() {
                 pb2.set_draw_target(ProgressDrawTarget::stderr());
-                pb2.enable_steady_tick(Duration::from_millis(120));
+                pb2.enable_steady_tick(Duration::from_millis(200));
                 let _ = rx.recv();
             }
         });
-        let out = f();
-        let _ = tx.send(());
-        let _ = t.join();
-        pb.finish_and_clear();
-        out
+        ShowAfterASecond {
+            pb: pb.clone(),
+            tx,
+            t,
+        }
+    }
+
+    fn done(self) {
+        let _ = self.tx.send(());
+        let _ = self.t.join();
+        self.pb.finish_and_clear();
     }
 }
 
@@ -67,15 +90,7 @@ impl Ui {
             .progress_chars("=> "),
         );
         pb.set_message(msg.to_string());
-        let (tx, rx) = mpsc::channel::<()>();
-        let pb2 = pb.clone();
-        let t = std::thread::spawn(move || {
-            if rx.recv_timeout(Duration::from_secs(1)).is_err() {
-                pb2.set_draw_target(ProgressDrawTarget::stderr());
-                pb2.enable_steady_tick(Duration::from_millis(200));
-                let _ = rx.recv();
-            }
-        });
+        let shown = ShowAfterASecond::new(&pb);
         let high = AtomicU64::new(0);
         let out = f(&|frac: f64| {
             // Monotonic: a later, lower estimate never moves the bar back.
@@ -85,9 +100,7 @@ impl Ui {
                 pb.set_position(pos);
             }
         });
-        let _ = tx.send(());
-        let _ = t.join();
-        pb.finish_and_clear();
+        shown.done();
         out
     }
 }
