@@ -311,19 +311,24 @@ fn item9_messages_say_what_is_wrong_and_exit_codes_follow_the_cause() {
     let c = Raster::from_values(8, 8, vec![42.0; 64], None, SampleType::I16).unwrap();
     let cf = tmp(&d, "c.tif");
     vtz::write_path(&c, Path::new(&cf), &Default::default()).unwrap();
-    let o = vtz([
-        "encode",
-        &cf,
-        "-o",
-        &out,
-        "--method",
-        "sibson",
-        "--max-error",
-        "1%",
-    ]);
-    assert_eq!(code(&o), 1, "{}", stderr(&o));
-    assert!(!stderr(&o).contains("needs --max-error"), "{}", stderr(&o));
-    assert!(stderr(&o).contains("--lossless"), "{}", stderr(&o));
+    for m in ["sibson", "fis"] {
+        let o = vtz([
+            "encode",
+            &cf,
+            "-o",
+            &out,
+            "--method",
+            m,
+            "--max-error",
+            "1%",
+        ]);
+        assert_eq!(code(&o), 1, "{}", stderr(&o));
+        assert!(!stderr(&o).contains("needs --max-error"), "{}", stderr(&o));
+        assert!(stderr(&o).contains("--lossless"), "{}", stderr(&o));
+    }
+    // `best` at the same request stores it (losslessly).
+    ok(&vtz(["encode", &cf, "-o", &out, "--max-error", "1%", "-q"]));
+    std::fs::remove_file(&out).unwrap();
     for e in ["NaN", "inf", "1e400", "-1"] {
         let o = vtz(["encode", &cf, "-o", &out, &format!("--max-error={e}")]);
         assert_eq!(code(&o), 2);

@@ -37,6 +37,11 @@ impl Representation for Fis {
     }
     fn encode(&self, job: &EncodeJob, progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
         let o = &job.params.fis;
+        if job.max_error == Some(0.0) && o.k.is_none() {
+            return Err(Error::unmet(
+                "the fis method needs a bound above 0, and the bound given is 0 here (a percent of the range of a raster whose valid samples are all equal, or none); use --lossless",
+            ));
+        }
         if job.lossless() && o.k.is_none() {
             return Err(Error::invalid(
                 "the fis method needs --max-error or --fis-k",
