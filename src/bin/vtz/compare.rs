@@ -3,6 +3,7 @@
 use crate::common::{self, RasterOpts, Ui};
 use std::path::{Path, PathBuf};
 use vtz::Result;
+use vtz::metrics::num;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -38,7 +39,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         ui.say(format!(
             "{}: error map, full colour at ±{}",
             png.display(),
-            c.max_error
+            num(c.max_error)
         ));
     }
     let vtz_size = |p: &Path| -> Option<u64> {
@@ -60,11 +61,17 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         c.width, c.height, c.valid
     );
     println!(
-        "max error   {} ({:.4} % of range {})",
-        c.max_error, c.max_error_pct, c.range
+        "max error   {} ({} % of range {})",
+        num(c.max_error),
+        num(c.max_error_pct),
+        num(c.range)
     );
-    println!("rmse        {} ({:.4} % of range)", c.rmse, c.rmse_pct);
-    println!("mean |err|  {}", c.mean_abs_error);
+    println!(
+        "rmse        {} ({} % of range)",
+        num(c.rmse),
+        num(c.rmse_pct)
+    );
+    println!("mean |err|  {}", num(c.mean_abs_error));
     println!("psnr        {:.2} dB", c.psnr_db);
     if let Some(b) = bps {
         println!("bits/sample {b:.4} ({} bytes)", bytes.unwrap_or(0));

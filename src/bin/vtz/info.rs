@@ -2,6 +2,7 @@
 
 use crate::common::{self, Ui};
 use std::path::PathBuf;
+use vtz::metrics::num;
 use vtz::{Limits, RasterType, Result};
 
 #[derive(clap::Args)]
@@ -97,7 +98,7 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
         h.sample_type.name()
     );
     if let Some((lo, hi)) = h.range {
-        println!("range         {lo} .. {hi}");
+        println!("range         {} .. {}", num(lo), num(hi));
     }
     if !h.mapping.is_identity() {
         println!(
@@ -106,7 +107,7 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
         );
     }
     match h.nodata {
-        Some(nd) => println!("nodata        {nd}"),
+        Some(nd) => println!("nodata        {}", num(nd)),
         None => println!("nodata        none declared"),
     }
     match &h.georef {
