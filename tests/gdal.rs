@@ -555,7 +555,7 @@ fn gdal_metadata_reaches_gdal_beside_png_exr_and_asc() {
 }
 
 #[test]
-fn a_window_or_a_resampling_drops_the_sources_statistics() {
+fn a_window_a_resampling_or_a_lossy_encode_drops_the_sources_statistics() {
     let mut r = read(&corpus(TUJUNGA));
     let with_stats = META.replace(
         "</GDALMetadata>",
@@ -574,6 +574,10 @@ fn a_window_or_a_resampling_drops_the_sources_statistics() {
     };
     let part = vtz::decode_with(&bytes, &decode_opts(|o| o.window = Some(window))).unwrap();
     assert_eq!(part.gdal_metadata.as_deref(), Some(META));
+    // A lossy encode of the whole: its values differ from the source's by up to the bound.
+    let lossy = encode_opts(&[vtz::Method::GRID], Some(vtz::ErrorBound::Abs(2.0)));
+    let back = vtz::decode(&vtz::encode(&r, &lossy).unwrap()).unwrap();
+    assert_eq!(back.gdal_metadata.as_deref(), Some(META));
     // Resampling needs a sites section: a small part, encoded by sibson.
     let mut small = part;
     small.gdal_metadata = Some(with_stats);

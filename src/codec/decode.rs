@@ -117,11 +117,21 @@ pub(crate) fn decode_reader<R: Read + Seek>(
             rd.limits(),
         )?;
     }
-    // A part or a resampling of the raster has other statistics than the whole.
-    if opts.scale.is_some() || (win.width, win.height) != (w, h) {
+    let payload = rd.read_section(idx)?;
+    // A part, a resampling, a prefix or a lossy section of the raster has other statistics
+    // than the source's whole.
+    let off = method.id().bound_at;
+    let lossy = payload
+        .get(off..off + 8)
+        .is_some_and(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")) != 0.0);
+    if lossy
+        || opts.scale.is_some()
+        || opts.sites.is_some()
+        || opts.levels.is_some()
+        || (win.width, win.height) != (w, h)
+    {
         gdal_metadata = gdal_metadata.map(|x| crate::formats::without_statistics(&x).into_owned());
     }
-    let payload = rd.read_section(idx)?;
     let job = DecodeJob {
         payload: &payload,
         header: &header,
