@@ -210,6 +210,35 @@ fn item6_png_neither_rounds_nor_reads_colour_as_heights_silently() {
         "terrain-rgb",
         "-q",
     ]));
+    // Float64 data into the float32 formats: refused unless --round; a .tif keeps it.
+    let r = Raster::from_values(
+        3,
+        2,
+        vec![0.1, 1.0, 2.5, 1e-9, 7.0, 8.0],
+        None,
+        SampleType::F64,
+    )
+    .unwrap();
+    let f64tif = tmp(&d, "f64.tif");
+    vtz::write_path(&r, Path::new(&f64tif), &Default::default()).unwrap();
+    for ext in ["exr", "f32"] {
+        let out = tmp(&d, &format!("f64.{ext}"));
+        let o = vtz(["convert", &f64tif, &out]);
+        assert_eq!(code(&o), 2, "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("float32") && stderr(&o).contains("--round"),
+            "{}",
+            stderr(&o)
+        );
+        ok(&vtz(["convert", &f64tif, &out, "--round", "-q"]));
+    }
+    let again = tmp(&d, "again.tif");
+    ok(&vtz(["convert", &f64tif, &again, "-q"]));
+    assert_same(
+        &r,
+        &vtz::read_path(Path::new(&again), &Default::default()).unwrap(),
+        "f64 tif",
+    );
 }
 
 // 7. One method that cannot meet the bound is left out of a several-method file, with a note.

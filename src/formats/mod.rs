@@ -245,6 +245,7 @@ pub(crate) fn encode_path(
             v
         }
         Format::Exr => {
+            samples::check_f32(raster, opts.round, "OpenEXR's float32 samples")?;
             let mut v = one(exr::write(raster)?);
             // The EXR holds NaN wherever a sample is missing, whatever nodata was declared.
             let has_invalid = raster.valid_count() < raster.len();
@@ -276,6 +277,7 @@ pub(crate) fn encode_path(
             v
         }
         Format::RawF32 => {
+            samples::check_f32(raster, opts.round, "raw float32 samples")?;
             let (f32s, json) = raw::write(raster)?;
             vec![
                 OutputFile {

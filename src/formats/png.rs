@@ -11,6 +11,7 @@
 
 use crate::error::{Error, Result};
 use crate::formats::ReadOptions;
+use crate::formats::samples::Rounding;
 use crate::formats::sidecar::{ExactF64, GeorefJson, expect_json_object};
 use crate::model::{Georef, Raster, SampleType, ValueMapping, check_size};
 use image::codecs::png::{CompressionType, FilterType, PngDecoder, PngEncoder};
@@ -417,6 +418,7 @@ pub(crate) fn write_mapped(
         r,
         round,
         &format!("16-bit PNG codes (value = {offset} + {scale}·code)"),
+        KEEP_HINT,
     )?;
     let has_invalid = r.valid_count() < n;
     if nodata_code.is_none() {
@@ -484,38 +486,8 @@ pub(crate) fn write_mapped(
     Ok((png, sidecar, m))
 }
 
-/// The largest change a writer's codes make to a valid sample: nothing about the data
-/// changes silently, so a writer that would round refuses unless the caller allows it.
-#[derive(Default)]
-struct Rounding {
-    worst: Option<(usize, f64, f64)>,
-}
-
-impl Rounding {
-    fn note(&mut self, i: usize, v: f64, stored: f64) {
-        let d = (stored - v).abs();
-        if d > 0.0 && self.worst.is_none_or(|(_, a, b)| d > (b - a).abs()) {
-            self.worst = Some((i, v, stored));
-        }
-    }
-
-    fn check(&self, r: &Raster, round: bool, what: &str) -> Result<()> {
-        match self.worst {
-            Some((i, v, stored)) if !round => {
-                let num = crate::metrics::num;
-                Err(Error::invalid(format!(
-                    "{what} cannot hold these values exactly: sample {i} (row {}, col {}) = {} would become {} (a change of {}); pass --round to accept the rounding, choose --png-scale/--png-offset, or write .tif, .exr or .f32, which keep the values",
-                    i / r.width,
-                    i % r.width,
-                    num(v),
-                    num(stored),
-                    num((stored - v).abs())
-                )))
-            }
-            _ => Ok(()),
-        }
-    }
-}
+/// Where the rounding message of a PNG writer points.
+const KEEP_HINT: &str = ", choose --png-scale/--png-offset, or write .tif, which keeps the values";
 
 /// Write a Mapbox Terrain-RGB PNG (RGBA8, alpha 255; invalid samples are (0, 0, 0, 0)),
 /// plus a sidecar holding the georef when the raster has one.
@@ -539,7 +511,7 @@ pub fn write_terrain_rgb(r: &Raster, round: bool) -> Result<(Vec<u8>, Option<Vec
         worst.note(i, v, trgb_value(c));
         buf.extend_from_slice(&[(c >> 16) as u8, (c >> 8) as u8, c as u8, 255]);
     }
-    worst.check(r, round, "Terrain-RGB's 0.1 steps")?;
+    worst.check(r, round, "Terrain-RGB's 0.1 steps", KEEP_HINT)?;
     let png = encode_png(&buf, r, ExtendedColorType::Rgba8)?;
     let sidecar = match &r.georef {
         Some(g) => Some(sidecar_bytes(
