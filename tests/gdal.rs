@@ -180,6 +180,17 @@ fn gdal_reads_geotiff_outputs() {
 }
 
 #[test]
+fn gdal_reads_raw_f32_outputs() {
+    if !have_gdalinfo("raw .f32 outputs (ENVI .hdr)") {
+        return;
+    }
+    check_format("f32", |_, want, out, got| {
+        assert_eq!(got.nodata, want.nodata, "{}", out.display());
+        assert!(out.with_extension("hdr").exists());
+    });
+}
+
+#[test]
 fn gdal_reads_png_outputs() {
     if !have_gdalinfo("PNG outputs (world file + .aux.xml)") {
         return;

@@ -288,6 +288,16 @@ pub(crate) fn encode_path(
                     path: path.with_extension("json"),
                     bytes: json,
                 },
+                // For GDAL and QGIS, which do not read vtz's JSON.
+                OutputFile {
+                    path: path.with_extension("hdr"),
+                    bytes: pam::envi_header(
+                        raster.width,
+                        raster.height,
+                        raster.nodata.filter(|v| (*v as f32) as f64 == *v),
+                        raster.georef.as_ref(),
+                    ),
+                },
             ]
         }
         Format::Vtz => return Err(not_here()),

@@ -1,4 +1,4 @@
-//! What GDAL reads beside a raster: world files and PAM `.aux.xml` files.
+//! What GDAL reads beside a raster: world files, PAM `.aux.xml` files and ENVI headers.
 //!
 //! GDAL (and so QGIS) ignores vtz's own sidecars (`NAME.png.json`, the EXR `vtz_*`
 //! attributes), so the formats without georeferencing of their own also get:
@@ -11,6 +11,10 @@
 //!   corner-based: x of the upper-left *corner*, pixel width, 0, y of that corner, 0, minus
 //!   the pixel height), the band's `<NoDataValue>`, `<Offset>`/`<Scale>` (how stored codes
 //!   become values) and what `Raster::gdal_metadata` says (description, units, items).
+//! - an **ENVI header** (`NAME.hdr` beside raw `NAME.f32`): GDAL's ENVI driver then reads the
+//!   raw samples as a raster (size, float32 little-endian, nodata as `data ignore value`),
+//!   placed by `map info` (the upper-left corner, pixel sizes) with the CRS as
+//!   `coordinate system string`.
 //!
 //! vtz's [`Georef::origin`] is the corner for [`RasterType::Area`] and the centre of pixel
 //! (0, 0) for [`RasterType::Point`] (SRTM posts), so point rasters are moved by half a pixel
@@ -378,9 +382,60 @@ fn parse_attrs(mut s: &str) -> Option<Vec<(&str, String)>> {
     }
 }
 
+/// The ENVI header that lets GDAL read a raw little-endian float32 file of `width` ×
+/// `height` samples (row 0 north), with its nodata value and placement when known.
+pub(crate) fn envi_header(
+    width: usize,
+    height: usize,
+    nodata: Option<f64>,
+    georef: Option<&Georef>,
+) -> Vec<u8> {
+    let mut h = String::from("ENVI\ndescription = {vtz raw float32 samples}\n");
+    let _ = write!(
+        h,
+        "samples = {width}\nlines = {height}\nbands = 1\nheader offset = 0\n\
+         file type = ENVI Standard\ndata type = 4\ninterleave = bsq\nbyte order = 0\n"
+    );
+    if let Some(nd) = nodata {
+        let _ = writeln!(h, "data ignore value = {nd}");
+    }
+    if let Some(g) = georef {
+        let [x0, dx, _, y0, _, ndy] = geotransform(g);
+        // Reference pixel (1, 1) in ENVI's 1-based pixel coordinates is the upper-left
+        // corner of the first pixel, which is GDAL's geotransform origin.
+        let _ = writeln!(
+            h,
+            "map info = {{Arbitrary, 1, 1, {x0}, {y0}, {dx}, {}}}",
+            -ndy
+        );
+        if let Some(wkt) = crs::crs_wkt(g) {
+            let _ = writeln!(h, "coordinate system string = {{{wkt}}}");
+        }
+    }
+    h.into_bytes()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn envi_header_places_the_raw_samples() {
+        let h = String::from_utf8(envi_header(1197, 643, Some(32767.0), Some(&utm()))).unwrap();
+        for line in [
+            "samples = 1197",
+            "lines = 643",
+            "data type = 4",
+            "byte order = 0",
+            "data ignore value = 32767",
+            "map info = {Arbitrary, 1, 1, 376313.6554542635, 3807917.8276283755, 30, 30}",
+        ] {
+            assert!(h.lines().any(|l| l == line), "{line} in\n{h}");
+        }
+        assert!(h.contains("coordinate system string = {PROJCS[\"WGS 84 / UTM zone 11N\""));
+        let bare = String::from_utf8(envi_header(2, 3, None, None)).unwrap();
+        assert!(!bare.contains("map info") && !bare.contains("ignore"));
+    }
 
     fn utm() -> Georef {
         Georef {
