@@ -135,6 +135,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             "max_error": report.max_error, "max_error_pct": pct,
             "lossless": report.max_error == 0.0,
             "method": report.method.name(),
+            "encoded": report.encoded.iter().map(|m| m.name()).collect::<Vec<_>>(),
             "skipped": report.skipped.iter().map(|(m, why)| serde_json::json!({"method": m.name(), "reason": why})).collect::<Vec<_>>(),
             "sites": sites,
             "levels": stat("levels").map(common::stat_json),
