@@ -420,6 +420,33 @@ fn item10_a_missing_output_directory_fails_before_encoding() {
     assert_eq!(code(&o), 1);
     assert!(stderr(&o).contains("does not exist"), "{}", stderr(&o));
     assert_eq!(stderr(&o).lines().count(), 1, "{}", stderr(&o));
+    // Options are checked before the input is read: a typo in --method is reported even
+    // for an input that does not exist.
+    let o = vtz([
+        "encode",
+        "no-such-input.tif",
+        "-o",
+        &tmp(&d, "k.vtz"),
+        "--method",
+        "nope",
+    ]);
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(stderr(&o).contains("unknown method"), "{}", stderr(&o));
+    // An output whose format cannot be told is refused before the input is read.
+    for cmd in ["decode", "convert"] {
+        let out = tmp(&d, "out.xyz");
+        let o = if cmd == "decode" {
+            vtz([cmd, "no-such-input.vtz", "-o", &out])
+        } else {
+            vtz([cmd, "no-such-input.tif", &out])
+        };
+        assert_eq!(code(&o), 2, "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("cannot tell the format"),
+            "{}",
+            stderr(&o)
+        );
+    }
     let f = kauai_vtz(&d);
     for cmd in [
         vec!["decode", f.as_str(), "-o", out.as_str()],

@@ -26,6 +26,9 @@ pub struct Args {
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let from = common::parse_format(a.from.as_deref())?;
     let to = common::parse_format(a.to.as_deref())?;
+    if to.is_none() {
+        vtz::formats::Format::from_path(&a.output)?;
+    }
     common::check_output(&a.input, &a.output, a.force)?;
     let raster = ui.busy("reading", || common::read_raster(&a.input, from, &a.raster))?;
     let wo = common::write_options(to, a.force, &a.raster);

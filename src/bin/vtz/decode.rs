@@ -38,9 +38,13 @@ pub struct Args {
 }
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
+    // Everything that can fail before the decode does: options, the output's format, its
+    // directory.
     let format = common::parse_format(a.format.as_deref())?;
+    if format.is_none() {
+        vtz::formats::Format::from_path(&a.output)?;
+    }
     common::check_output(&a.input, &a.output, a.force)?;
-    let bytes = common::read_file(&a.input)?;
     let mut opts = DecodeOptions::default();
     if let Some(s) = a.section.as_deref() {
         opts.section = s.parse()?;
@@ -49,6 +53,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     opts.levels = a.level;
     opts.window = a.window.as_deref().map(str::parse).transpose()?;
     opts.scale = a.scale.as_deref().map(str::parse).transpose()?;
+    let bytes = common::read_file(&a.input)?;
     let raster = ui
         .progress("decoding", |p| {
             let mut d = vtz::Decoder::with_limits(std::io::Cursor::new(&bytes), opts.limits)?;

@@ -69,10 +69,16 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         .clone()
         .unwrap_or_else(|| common::default_output(&a.input, "vtz"));
     common::check_output(&a.input, &output, a.force)?;
+    // Every option is parsed and checked before the (maybe long) read.
+    let norm: vtz::Norm = a.norm.parse()?;
+    let methods = vtz::Method::parse_list(&a.method)?;
+    let rmse = a.rmse.as_deref().map(ErrorBound::parse).transpose()?;
+    if let Some(b) = a.bps.filter(|b| !(*b > 0.0 && b.is_finite())) {
+        return Err(vtz::Error::invalid(format!("--bps {b} must be positive")));
+    }
     let raster = ui.busy("reading", || {
         common::read_raster(&a.input, format, &a.raster)
     })?;
-    let norm: vtz::Norm = a.norm.parse()?;
     let target_bytes = match (a.size, a.bps) {
         (Some(s), _) => Some(s),
         (None, Some(b)) if b > 0.0 && b.is_finite() => {
@@ -85,8 +91,8 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     };
     let mut opts = EncodeOptions::default();
     opts.max_error = bound;
-    opts.methods = vtz::Method::parse_list(&a.method)?;
-    opts.params.sibson.rmse = a.rmse.as_deref().map(ErrorBound::parse).transpose()?;
+    opts.methods = methods;
+    opts.params.sibson.rmse = rmse;
     if opts
         .params
         .sibson
