@@ -61,3 +61,15 @@ pub fn raw_bits(dir: &Path, name: &str) -> Vec<u32> {
 pub fn raster_bits(r: &Raster) -> Vec<u32> {
     r.data.iter().map(|&v| (v as f32).to_bits()).collect()
 }
+
+/// A UTM zone 11N georef (the Big Tujunga tile's: 30 m area pixels, EPSG:32611).
+pub fn utm11_georef() -> crate::model::Georef {
+    crate::model::Georef {
+        origin: [376313.6554542635, 3807917.8276283755],
+        pixel_size: [30.0, 30.0],
+        raster_type: crate::model::RasterType::Area,
+        epsg: Some(32611),
+        wkt: None,
+        geokeys: None,
+    }
+}

@@ -386,14 +386,7 @@ mod tests {
     #[test]
     fn output_bytes_are_the_same_every_time() {
         let mut r = random_raster(9, 13, 7, Some(-9999.0));
-        r.georef = Some(Georef {
-            origin: [376313.6554542635, 3807917.8276283755],
-            pixel_size: [30.0, 30.0],
-            raster_type: RasterType::Area,
-            epsg: Some(32611),
-            wkt: None,
-            geokeys: None,
-        });
+        r.georef = Some(utm11_georef());
         // Each write builds a new HashMap with a new random seed: with two custom attributes,
         // 24 equal writes by chance would be a 2^-23 event.
         let first = write(&r).unwrap();

@@ -438,14 +438,7 @@ mod tests {
     }
 
     fn utm() -> Georef {
-        Georef {
-            origin: [376313.6554542635, 3807917.8276283755],
-            pixel_size: [30.0, 30.0],
-            raster_type: RasterType::Area,
-            epsg: Some(32611),
-            wkt: None,
-            geokeys: None,
-        }
+        crate::testutil::utm11_georef()
     }
 
     fn kauai() -> Georef {
