@@ -457,3 +457,39 @@ fn item10_a_missing_output_directory_fails_before_encoding() {
         assert!(stderr(&o).contains("does not exist"), "{}", stderr(&o));
     }
 }
+
+// Found while checking the README's commands: `vtz info F | head -1` panicked on the closed
+// pipe. A reader that stops early ends the command quietly; never a panic.
+#[test]
+fn a_reader_that_stops_early_is_not_a_panic() {
+    use std::process::{Command, Stdio};
+    let d = tempfile::tempdir().unwrap();
+    let f = kauai_vtz(&d);
+    let sites = tmp(&d, "s.vtz");
+    ok(&vtz([
+        "encode",
+        &corpus("scape_crater.png"),
+        "-o",
+        &sites,
+        "--sites",
+        "3000",
+        "-q",
+    ]));
+    for args in [
+        vec!["info", f.as_str()],
+        vec!["info", f.as_str(), "--json"],
+        vec!["verify", f.as_str()],
+        vec!["sites", sites.as_str()],
+    ] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_vtz"))
+            .args(&args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take()); // the reader is gone before the first line
+        let o = child.wait_with_output().unwrap();
+        assert_eq!(o.status.code(), Some(0), "{args:?}: {}", stderr(&o));
+        assert!(!stderr(&o).contains("panicked"), "{args:?}: {}", stderr(&o));
+    }
+}

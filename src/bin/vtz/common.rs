@@ -234,3 +234,17 @@ pub fn stat_json(v: vtz::StatValue) -> serde_json::Value {
         _ => serde_json::Value::Null,
     }
 }
+
+/// Write to stdout for [`outln!`] / [`out!`]: a reader that has gone ends the command quietly
+/// (exit 0), any other failure is a one-line I/O error (exit 1); never a panic.
+pub fn out(args: std::fmt::Arguments) {
+    use std::io::Write;
+    let mut o = std::io::stdout().lock();
+    if let Err(e) = o.write_fmt(args).and_then(|_| o.flush()) {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(0);
+        }
+        eprintln!("vtz: {}", Error::io("writing to stdout", e));
+        std::process::exit(1);
+    }
+}

@@ -53,35 +53,38 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         let mut j = serde_json::to_value(&c).unwrap_or_default();
         j["bits_per_sample"] = serde_json::json!(bps);
         j["vtz_bytes"] = serde_json::json!(bytes);
-        println!("{j}");
+        outln!("{j}");
         return Ok(());
     }
-    println!(
+    outln!(
         "size        {} x {} ({} valid samples)",
-        c.width, c.height, c.valid
+        c.width,
+        c.height,
+        c.valid
     );
-    println!(
+    outln!(
         "max error   {} ({} % of range {})",
         num(c.max_error),
         num(c.max_error_pct),
         num(c.range)
     );
-    println!(
+    outln!(
         "rmse        {} ({} % of range)",
         num(c.rmse),
         num(c.rmse_pct)
     );
-    println!("mean |err|  {}", num(c.mean_abs_error));
-    println!("psnr        {:.2} dB", c.psnr_db);
+    outln!("mean |err|  {}", num(c.mean_abs_error));
+    outln!("psnr        {:.2} dB", c.psnr_db);
     if let Some(b) = bps {
-        println!("bits/sample {b:.4} ({} bytes)", bytes.unwrap_or(0));
+        outln!("bits/sample {b:.4} ({} bytes)", bytes.unwrap_or(0));
     }
     if c.lost > 0 || c.invented > 0 {
-        println!(
+        outln!(
             "nodata      {} valid samples lost, {} nodata samples filled",
-            c.lost, c.invented
+            c.lost,
+            c.invented
         );
     }
-    println!("identical   {}", if c.identical { "yes" } else { "no" });
+    outln!("identical   {}", if c.identical { "yes" } else { "no" });
     Ok(())
 }

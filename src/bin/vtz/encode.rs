@@ -148,7 +148,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             "position_bits_per_site": stat("position_bits_per_site").map(common::stat_json),
             "height_bits_per_site": stat("height_bits_per_site").map(common::stat_json),
         });
-        println!("{j}");
+        outln!("{j}");
     } else {
         let what = if report.max_error == 0.0 && sites.is_none() {
             "lossless".to_string()

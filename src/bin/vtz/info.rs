@@ -81,38 +81,39 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
                 .collect();
             j[key] = serde_json::Value::Object(obj);
         }
-        println!("{}", serde_json::to_string_pretty(&j).unwrap_or_default());
+        outln!("{}", serde_json::to_string_pretty(&j).unwrap_or_default());
         return Ok(());
     }
-    println!("file          {}", a.input.display());
-    println!(
+    outln!("file          {}", a.input.display());
+    outln!(
         "size          {} x {} = {samples} samples, {}",
         h.width,
         h.height,
         h.sample_type.name()
     );
-    println!(
+    outln!(
         "bytes         {} ({bps:.4} bits/sample, {:.2}:1 against {})",
         info.file_bytes,
         h.sample_type.bits() as f64 / bps,
         h.sample_type.name()
     );
     if let Some((lo, hi)) = h.range {
-        println!("range         {} .. {}", num(lo), num(hi));
+        outln!("range         {} .. {}", num(lo), num(hi));
     }
     if !h.mapping.is_identity() {
-        println!(
+        outln!(
             "mapping       value = {} + {} * code",
-            h.mapping.offset, h.mapping.scale
+            h.mapping.offset,
+            h.mapping.scale
         );
     }
     match h.nodata {
-        Some(nd) => println!("nodata        {}", num(nd)),
-        None => println!("nodata        none declared"),
+        Some(nd) => outln!("nodata        {}", num(nd)),
+        None => outln!("nodata        none declared"),
     }
     match &h.georef {
         Some(g) => {
-            println!(
+            outln!(
                 "georef        origin ({}, {}) pixel {} x {} ({})",
                 g.origin[0],
                 g.origin[1],
@@ -124,22 +125,22 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
                 }
             );
             if let Some(e) = g.epsg {
-                println!("crs           EPSG:{e}");
+                outln!("crs           EPSG:{e}");
             }
             if g.geokeys.is_some() {
-                println!("geotiff keys  kept");
+                outln!("geotiff keys  kept");
             }
         }
-        None => println!("georef        none"),
+        None => outln!("georef        none"),
     }
     for st in &stats {
         for line in &st.lines {
-            println!("{line}");
+            outln!("{line}");
         }
     }
-    println!("sections      {}", info.sections.len());
+    outln!("sections      {}", info.sections.len());
     for e in &info.sections {
-        println!(
+        outln!(
             "  [{}] {:<9} {:>10} bytes {:>8.4} bits/sample{}{}",
             e.index,
             e.name,

@@ -1,6 +1,22 @@
 //! The `vtz` command line: a thin layer over the library, one file per subcommand.
 #![forbid(unsafe_code)]
 
+/// `println!` that never panics: when the reader of stdout has gone (`vtz info F | head`),
+/// the command stops quietly with success, as the reader chose; another write error is a
+/// one-line I/O error, exit 1.
+macro_rules! outln {
+    ($($arg:tt)*) => {
+        $crate::common::out(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+
+/// `print!` with the same rules as [`outln!`].
+macro_rules! out {
+    ($($arg:tt)*) => {
+        $crate::common::out(format_args!($($arg)*))
+    };
+}
+
 mod common;
 mod compare;
 mod convert;

@@ -289,9 +289,9 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
                 "missing": c.missing,
             })),
         });
-        println!("{j}");
+        outln!("{j}");
     } else {
-        print!("{table}");
+        out!("{table}");
     }
 
     let broken: Vec<&Row> = rows.iter().filter(|r| r.bound_ok == Some(false)).collect();

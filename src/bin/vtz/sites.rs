@@ -1,7 +1,6 @@
 //! `vtz sites`: list a .vtz file's sites with their importance rank, as CSV.
 
 use crate::common::{self, Ui};
-use std::io::Write;
 use std::path::PathBuf;
 use vtz::{Limits, Result};
 
@@ -53,9 +52,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             vtz::formats::write_file(p, csv.into_bytes(), a.force)?;
             ui.say(format!("{}: {rank} sites", p.display()));
         }
-        None => std::io::stdout()
-            .write_all(csv.as_bytes())
-            .map_err(|e| vtz::Error::io("stdout", e))?,
+        None => out!("{csv}"),
     }
     Ok(())
 }

@@ -35,7 +35,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
                         v.unknown.len()
                     )
                 };
-                println!(
+                outln!(
                     "{}: ok ({} sections: checksums, decodes, {} valid samples within the stored range and max error of {}{unknown})",
                     f.display(),
                     v.sections,
@@ -43,7 +43,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
                     surfaces.join(", ")
                 );
             }
-            (Ok(v), true) => println!(
+            (Ok(v), true) => outln!(
                 "{}",
                 serde_json::json!({
                     "file": f, "ok": true, "sections": v.sections, "valid_samples": v.valid,
@@ -52,8 +52,8 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
                     "unknown_sections": v.unknown,
                 })
             ),
-            (Err(e), false) => println!("{}: FAILED: {e}", f.display()),
-            (Err(e), true) => println!(
+            (Err(e), false) => outln!("{}: FAILED: {e}", f.display()),
+            (Err(e), true) => outln!(
                 "{}",
                 serde_json::json!({"file": f, "ok": false, "error": e.to_string()})
             ),
