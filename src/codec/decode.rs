@@ -58,6 +58,8 @@ pub(crate) fn decode_reader<R: Read + Seek>(
 ) -> Result<Raster> {
     let header = rd.header().clone();
     let mask = rd.read_mask()?;
+    let flat = rd.read_flat(mask.as_deref())?;
+    let method_mask = method_mask(mask.as_deref(), flat.as_deref());
     let mut gdal_metadata = rd.read_gdal_metadata()?;
     let idx = section_index(rd, opts.section)?;
     let entry = rd
@@ -77,10 +79,7 @@ pub(crate) fn decode_reader<R: Read + Seek>(
             win.x, win.y, win.width, win.height
         )));
     }
-    if matches!(
-        entry.kind,
-        SectionKind::MASK | SectionKind::METADATA | SectionKind::GDAL_METADATA
-    ) {
+    if !entry.kind.may_be_primary() && methods::by_section(entry.kind).is_none() {
         let methods: Vec<String> = rd
             .entries()
             .iter()
@@ -135,18 +134,30 @@ pub(crate) fn decode_reader<R: Read + Seek>(
     let job = DecodeJob {
         payload: &payload,
         header: &header,
-        mask: mask.as_deref(),
+        mask: method_mask.as_deref().or(mask.as_deref()),
         window: win,
         sites: opts.sites,
         levels: opts.levels,
         threads: opts.threads,
+        flat: flat.as_deref(),
         base: None,
         progress,
     };
     if let Some(s) = opts.scale {
         return decode_scaled(method, &job, s, gdal_metadata);
     }
-    let data = method.decode(&job)?;
+    let mut data = method.decode(&job)?;
+    if let Some(f) = &flat {
+        // Flat regions hold their exact value whatever the method made of them.
+        for y in 0..win.height {
+            for x in 0..win.width {
+                let v = f[(win.y + y) * w + win.x + x];
+                if !v.is_nan() {
+                    data[y * win.width + x] = v;
+                }
+            }
+        }
+    }
     let mut r = Raster {
         width: win.width,
         height: win.height,
@@ -160,6 +171,18 @@ pub(crate) fn decode_reader<R: Read + Seek>(
     };
     r.normalize_mask();
     Ok(r)
+}
+
+/// The mask a method decodes with: the file's, with the flat regions' samples also
+/// invalid (the method need not represent them); `None` without flat regions.
+pub(crate) fn method_mask(mask: Option<&[bool]>, flat: Option<&[f64]>) -> Option<Vec<bool>> {
+    let f = flat?;
+    Some(
+        f.iter()
+            .enumerate()
+            .map(|(i, v)| v.is_nan() && mask.is_none_or(|m| m[i]))
+            .collect(),
+    )
 }
 
 /// The size of a `w × h` grid resampled by `s` (sample (i, j) sits at source position
@@ -176,7 +199,26 @@ fn decode_scaled(
     gdal_metadata: Option<String>,
 ) -> Result<Raster> {
     let header: &Header = job.header;
-    let (data, mask, ow, oh) = m.decode_scaled(job, s.num, s.den)?;
+    let (mut data, mut mask, ow, oh) = m.decode_scaled(job, s.num, s.den)?;
+    if let Some(f) = job.flat {
+        // A resampled sample whose nearest source sample is in a flat region takes the
+        // region's value (and is valid, as that sample is).
+        let (w, h) = (header.width as usize, header.height as usize);
+        let near = |i: usize, n: usize| {
+            ((i as u64 * s.den as u64 * 2 + s.num as u64) / (2 * s.num as u64)).min(n as u64 - 1)
+                as usize
+        };
+        for y in 0..oh {
+            let sy = near(y, h);
+            for x in 0..ow {
+                let v = f[sy * w + near(x, w)];
+                if !v.is_nan() {
+                    data[y * ow + x] = v;
+                    mask[y * ow + x] = true;
+                }
+            }
+        }
+    }
     let f = s.den as f64 / s.num as f64;
     let georef = header.georef.as_ref().map(|g| {
         let mut g = g.clone();

@@ -38,6 +38,7 @@ fn encode_method(
     header: &Header,
     opts: &EncodeOptions,
     e: Option<f64>,
+    flat: Option<&[f64]>,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Candidate> {
     // Settings that belong to another method are a mistake, not something to ignore.
@@ -53,6 +54,8 @@ fn encode_method(
         header,
         max_error: e,
         params: &opts.params,
+        effort: opts.effort.unwrap_or(crate::methods::DEFAULT_EFFORT),
+        flat,
         base: None,
     };
     Ok(Candidate {
@@ -69,8 +72,23 @@ pub(crate) fn encode_once(
     progress: &mut dyn FnMut(f64),
 ) -> Result<(Vec<u8>, EncodeReport)> {
     raster.validate()?;
+    if let Some(k) = opts.effort.filter(|k| !(1..=9).contains(k)) {
+        return Err(Error::invalid(format!("effort {k} is not in 1..=9")));
+    }
     let mut header = Header::of(raster)?;
     let e = opts.max_error.map(|b| b.absolute(header.range));
+    // Flat regions decode exactly whatever the method: they get a section of their own,
+    // and the methods see them as samples they need not represent.
+    let flat = crate::model::flat::find(raster);
+    let masked;
+    let (source, raster) = match &flat {
+        Some(f) => {
+            masked = raster.without_flat(f);
+            (raster, &masked)
+        }
+        None => (raster, raster),
+    };
+    let flat = flat.as_deref();
     let mut cands: Vec<Candidate> = Vec::new();
     let mut skipped: Vec<(Method, String)> = Vec::new();
     let mut encoded: Vec<Method> = Vec::new();
@@ -95,7 +113,7 @@ pub(crate) fn encode_once(
                         + (1.0 - ESTIMATE_SHARE) * (i as f64 + f.clamp(0.0, 1.0)) / n as f64,
                 )
             };
-            match encode_method(m, raster, &header, opts, e, &mut p) {
+            match encode_method(m, raster, &header, opts, e, flat, &mut p) {
                 Ok(c) => cands.push(c),
                 Err(err) => last_err = Some(err),
             }
@@ -125,7 +143,7 @@ pub(crate) fn encode_once(
             }
             let mut p = slot(progress, k, n);
             encoded.push(*m);
-            match encode_method(m.0, raster, &header, &o, e, &mut p) {
+            match encode_method(m.0, raster, &header, &o, e, flat, &mut p) {
                 Ok(c) => cands.push(c),
                 // Of several methods, one that cannot meet the request is left out with a
                 // note; the others still make the file.
@@ -144,7 +162,7 @@ pub(crate) fn encode_once(
         .min_by_key(|&i| cands[i].enc.payload.len())
         .expect("non-empty");
     let mut sections = Vec::new();
-    if let Some(m) = &raster.mask {
+    if let Some(m) = &source.mask {
         if m.iter().any(|&b| !b) {
             sections.push(Section {
                 kind: SectionKind::MASK,
@@ -152,6 +170,13 @@ pub(crate) fn encode_once(
                 payload: container::mask::encode(m),
             });
         }
+    }
+    if let Some(f) = flat {
+        sections.push(Section {
+            kind: SectionKind::FLAT,
+            flags: SF_REQUIRED,
+            payload: container::flat::encode(f, raster.width),
+        });
     }
     header.primary = (sections.len() + primary) as u16;
     let report = EncodeReport {
@@ -178,7 +203,7 @@ pub(crate) fn encode_once(
             payload: meta.as_bytes().to_vec(),
         });
     }
-    if let Some(xml) = &raster.gdal_metadata {
+    if let Some(xml) = &source.gdal_metadata {
         // Optional (flags clear): samples decode without it, and older decoders skip it.
         sections.push(Section {
             kind: SectionKind::GDAL_METADATA,
@@ -282,7 +307,7 @@ fn shortlist(
         let mut sum = Some(0usize);
         for t in &tiles {
             let h = Header::of(t)?;
-            let r = encode_method(m, t, &h, opts, e, &mut |_| {});
+            let r = encode_method(m, t, &h, opts, e, None, &mut |_| {});
             done += 1.0;
             progress(done / total);
             match r {

@@ -427,15 +427,19 @@ impl<R: Read + Seek> Decoder<R> {
         if self.mask.is_none() {
             self.mask = Some(self.rd.read_mask()?);
         }
+        let mask = self.mask.as_ref().and_then(|m| m.as_deref());
+        let flat = self.rd.read_flat(mask)?;
+        let method_mask = decode::method_mask(mask, flat.as_deref());
         let payload = self.rd.read_section(i)?;
         let job = DecodeJob {
             payload: &payload,
             header: &header,
-            mask: self.mask.as_ref().and_then(|m| m.as_deref()),
+            mask: method_mask.as_deref().or(mask),
             window: Window::full(header.width as usize, header.height as usize),
             sites: None,
             levels: None,
             threads: 1,
+            flat: flat.as_deref(),
             base: None,
             progress: &|_| {},
         };

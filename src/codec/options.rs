@@ -27,6 +27,10 @@ pub struct EncodeOptions {
     pub target_bytes: Option<u64>,
     /// Free-form JSON stored in a metadata section (e.g. provenance).
     pub metadata: Option<String>,
+    /// Encoder effort 1..=9, speed against size, as JPEG XL and zstd users know it; `None`
+    /// = [`DEFAULT_EFFORT`](crate::DEFAULT_EFFORT). Read by the methods that have choices to
+    /// make (the residual layer); decoding speed does not depend on it.
+    pub effort: Option<u8>,
 }
 
 /// A resampling factor `num/den` (2/1 doubles the resolution, 1/4 quarters it).

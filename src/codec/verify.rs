@@ -48,12 +48,16 @@ pub(crate) fn verify<R: Read + Seek>(rd: &mut ContainerReader<R>) -> Result<Veri
         }
         _ => {}
     }
+    // The flat regions: decoded (and checked against the mask) here, then written over
+    // every surface as a decoder does.
+    let flat = rd.read_flat(mask.as_deref())?;
+    let method_mask = super::decode::method_mask(mask.as_deref(), flat.as_deref());
     let fill = header.nodata.unwrap_or(f64::NAN);
     let mut surfaces: Vec<(usize, String, f64, Vec<f64>)> = Vec::new();
     let mut unknown = Vec::new();
     for (i, e) in entries.iter().enumerate() {
         let at = |what: String| Error::corrupt(format!("section {i} ({}): {what}", e.name));
-        if e.kind == SectionKind::MASK {
+        if e.kind == SectionKind::MASK || e.kind == SectionKind::FLAT {
             continue;
         }
         if e.kind == SectionKind::METADATA {
@@ -76,17 +80,25 @@ pub(crate) fn verify<R: Read + Seek>(rd: &mut ContainerReader<R>) -> Result<Veri
         let job = DecodeJob {
             payload: &payload,
             header: &header,
-            mask: mask.as_deref(),
+            mask: method_mask.as_deref().or(mask.as_deref()),
             window: Window::full(header.width as usize, header.height as usize),
             sites: None,
             levels: None,
             threads: 0,
+            flat: flat.as_deref(),
             base: None,
             progress: &|_| {},
         };
-        let data = m
+        let mut data = m
             .decode_full(&job)
             .map_err(|err| err.context(format!("section {i}")))?;
+        if let Some(f) = &flat {
+            for (d, &v) in data.iter_mut().zip(f) {
+                if !v.is_nan() {
+                    *d = v;
+                }
+            }
+        }
         if data.len() != n {
             return Err(at(format!("decodes to {} samples, not {n}", data.len())));
         }

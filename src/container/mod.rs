@@ -3,6 +3,7 @@
 
 pub mod bytes;
 pub mod header;
+pub mod flat;
 pub mod mask;
 
 pub use header::Header;
@@ -33,12 +34,12 @@ pub struct SectionKind(pub u16);
 impl SectionKind {
     /// Validity mask (nodata samples).
     pub const MASK: SectionKind = SectionKind(1);
-    /// Residual layer (reserved).
-    pub const RESIDUAL: SectionKind = SectionKind(6);
     /// Free-form UTF-8 JSON metadata.
     pub const METADATA: SectionKind = SectionKind(7);
     /// GDAL's metadata XML (GeoTIFF tag 42112 `GDAL_METADATA`), UTF-8, verbatim.
     pub const GDAL_METADATA: SectionKind = SectionKind(8);
+    /// Flat regions: samples every method decodes to their region's exact value.
+    pub const FLAT: SectionKind = SectionKind(9);
 
     /// The type code as stored.
     pub fn code(self) -> u16 {
@@ -54,16 +55,19 @@ impl SectionKind {
     pub fn may_be_primary(self) -> bool {
         !matches!(
             self,
-            SectionKind::MASK | SectionKind::METADATA | SectionKind::GDAL_METADATA
+            SectionKind::MASK
+                | SectionKind::METADATA
+                | SectionKind::GDAL_METADATA
+                | SectionKind::FLAT
         )
     }
     /// The name of a framing or reserved type, `None` for the methods' types.
     fn framing_name(self) -> Option<&'static str> {
         match self {
             SectionKind::MASK => Some("mask"),
-            SectionKind::RESIDUAL => Some("residual"),
             SectionKind::METADATA => Some("metadata"),
             SectionKind::GDAL_METADATA => Some("gdal-metadata"),
+            SectionKind::FLAT => Some("flat"),
             _ => None,
         }
     }
@@ -368,6 +372,17 @@ impl<R: Read + Seek> ContainerReader<R> {
         let n = self.header.samples() as usize;
         match self.find(SectionKind::MASK) {
             Some(i) => Ok(Some(mask::decode(&self.read_section(i)?, n)?)),
+            None => Ok(None),
+        }
+    }
+
+    /// The flat regions (from the first flat section) of a raster with validity `mask`: per
+    /// sample its region's value, NaN elsewhere; `None` when the file has none.
+    pub fn read_flat(&mut self, mask: Option<&[bool]>) -> Result<Option<Vec<f64>>> {
+        let n = self.header.samples() as usize;
+        let w = self.header.width as usize;
+        match self.find(SectionKind::FLAT) {
+            Some(i) => Ok(Some(flat::decode(&self.read_section(i)?, w, n, mask)?)),
             None => Ok(None),
         }
     }

@@ -32,10 +32,14 @@ registry! {
     haar: HAAR => Haar,
     /// Fractal interpolation surface on every k-th sample (the fractal-interpolation paper).
     fis: FIS => Fis,
+    /// Every sample predicted from decoded ones (multilevel interpolation or the weighted
+    /// scan predictor), quantized closed loop and context coded on the data's own lattice.
+    residual: RESIDUAL => Residual,
 }
 
 pub use fis::FisOptions;
 pub use haar::HaarOptions;
+pub use residual::DEFAULT_EFFORT;
 pub use sites::{Norm, SibsonOptions};
 
 use crate::container::{Header, SectionKind};
@@ -236,6 +240,12 @@ pub(crate) struct EncodeJob<'a> {
     pub header: &'a Header,
     pub max_error: Option<f64>,
     pub params: &'a MethodParams,
+    /// Encoder effort 1..=9 (speed against size), for the methods that have the choice.
+    pub effort: u8,
+    /// The flat regions' values (NaN outside them), which the decoder knows before the
+    /// method runs: `raster` marks their samples invalid, and a method may use the values
+    /// (as known neighbours) but need not represent them.
+    pub flat: Option<&'a [f64]>,
     #[allow(dead_code)]
     pub base: Option<&'a [f64]>,
 }
@@ -276,6 +286,9 @@ pub(crate) struct DecodeJob<'a> {
     pub sites: Option<usize>,
     pub levels: Option<usize>,
     pub threads: usize,
+    /// The flat regions' values (NaN outside them); `mask` already marks their samples
+    /// invalid, and the codec writes their values over whatever the method decodes there.
+    pub flat: Option<&'a [f64]>,
     /// The decoded surface of the section this one refines (reserved for the residual
     /// layer; `None` for every method today).
     #[allow(dead_code)]

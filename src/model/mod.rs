@@ -6,6 +6,7 @@ use crate::error::{Error, Result};
 use std::str::FromStr;
 
 mod fill;
+pub(crate) mod flat;
 pub(crate) use fill::fill_invalid;
 
 /// The type the source stored its samples in. Values are held as `f64` in memory (exact for
@@ -384,6 +385,19 @@ impl Raster {
             }
         }
         Ok(())
+    }
+
+    /// A copy whose mask also marks the samples of the flat regions `flat` (values, NaN
+    /// outside them) invalid: what the methods encode when the regions have a section.
+    pub(crate) fn without_flat(&self, flat: &[f64]) -> Raster {
+        let mask = (0..self.len())
+            .map(|i| self.is_valid(i) && flat[i].is_nan())
+            .collect();
+        Raster {
+            mask: Some(mask),
+            gdal_metadata: None,
+            ..self.clone()
+        }
     }
 
     /// Drop an all-true mask (so "no nodata" has one representation).

@@ -31,7 +31,8 @@ pub struct Args {
     /// Sibson sites: stop when the RMSE is at most E data units or E% of the range.
     #[arg(long, value_name = "E")]
     pub rmse: Option<String>,
-    /// Representation: best (smallest that meets the request), sibson, grid, fis, haar; a
+    /// Representation: best (smallest that meets the request), sibson, grid, fis, haar,
+    /// residual; a
     /// comma list (sibson,fis,haar) writes each as a section, the smallest as the primary.
     #[arg(long, default_value = "best")]
     pub method: String,
@@ -48,6 +49,10 @@ pub struct Args {
     /// Sibson refinement norm: linf (worst sample) or l2 (worst tile by RMS).
     #[arg(long, default_value = "linf")]
     pub norm: String,
+    /// Encoder effort 1..=9: higher tries more predictors and bin layouts for a smaller
+    /// file (default 5); decoding speed does not depend on it.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=9))]
+    pub effort: Option<u8>,
     /// Input format, when the extension does not tell (tif, png, terrain-rgb, exr, hgt, asc, f32).
     #[arg(long, value_name = "FMT")]
     pub format: Option<String>,
@@ -110,6 +115,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     opts.params.fis.k = a.fis_k;
     opts.params.fis.s = a.fis_s;
     opts.target_bytes = target_bytes;
+    opts.effort = a.effort;
     let (bytes, report) = ui.progress("encoding", |p| {
         vtz::encode_progress(&raster, &opts, &mut |f| p(f))
     })?;

@@ -1,0 +1,262 @@
+//! Multilevel interpolation (as SZ3 predicts): an anchor grid of stride 2^L coded with MED,
+//! then levels coarse to fine, each a vertical pass (odd rows of the level, even columns)
+//! and a horizontal pass (every row of the level, odd columns), predicting each sample by
+//! cubic interpolation (−1, 9, 9, −1)/16 of its known neighbours along the pass, corrected
+//! on the finest levels by a least-squares 2-D stencil the encoder fits and sends.
+
+use super::coder::{BinCoder, Ctx, LEVELS, round_div};
+use super::ls::{self, Normal};
+use super::plane::{FIXED, Plane, SKIPPED, State, quarter_bins};
+use crate::error::Result;
+
+/// Points of the least-squares stencil, (dy, dx) in units of the level's step s, per pass;
+/// all known when the pass reaches a sample (vertical pass first).
+const STENCIL: [[(isize, isize); NF]; 2] = [
+    [(-1, 0), (1, 0), (-3, 0), (3, 0), (0, -2), (-1, -2), (1, -2), (-1, 2), (1, 2), (-2, 0)],
+    [(0, -1), (0, 1), (0, -3), (0, 3), (-1, 0), (-1, -1), (-1, 1), (1, -1), (1, 1), (-2, 0)],
+];
+/// Stencil points.
+pub const NF: usize = 10;
+/// The causal neighbours (dx, dy in units of s) whose residuals set a sample's contexts.
+const CTX_NB: [(isize, isize); 10] = [
+    (-1, 0),
+    (1, 0),
+    (0, -1),
+    (0, 1),
+    (-1, -1),
+    (1, -1),
+    (-1, 1),
+    (1, 1),
+    (-2, 0),
+    (0, -2),
+];
+
+/// The interpolation predictor's settings, as stored in the section.
+#[derive(Clone, Copy, Debug)]
+pub struct Config {
+    /// Anchor stride 2^levels (1..=12).
+    pub levels: u32,
+    /// Levels (finest first) with a least-squares correction (0..=levels, ≤ 4).
+    pub ls_levels: u32,
+}
+
+/// 1-D interpolation at the middle of `b` and `c` from the support −3s, −s, +s, +3s.
+#[inline]
+fn interp1(a: Option<i64>, b: i64, c: Option<i64>, d: Option<i64>) -> i64 {
+    match (a, c, d) {
+        (Some(a), Some(c), Some(d)) => round_div(-a + 9 * b + 9 * c - d, 16),
+        (None, Some(c), Some(d)) => round_div(3 * b + 6 * c - d, 8),
+        (Some(a), Some(c), None) => round_div(-a + 6 * b + 3 * c, 8),
+        (_, Some(c), _) => round_div(b + c, 2),
+        (Some(a), None, _) => round_div(3 * b - a, 2),
+        (None, None, _) => b,
+    }
+}
+
+/// Stencil values minus `base`; `None` when a point is outside the raster (or, with
+/// `usable`, not usable for a fit).
+#[inline]
+fn features(
+    vals: &[i64],
+    usable: Option<&[u8]>,
+    (w, h): (usize, usize),
+    (y, x, s): (usize, usize, usize),
+    pass: usize,
+    base: i64,
+) -> Option<[i64; NF]> {
+    let mut f = [0i64; NF];
+    for (k, &(dy, dx)) in STENCIL[pass].iter().enumerate() {
+        let yy = y as isize + dy * s as isize;
+        let xx = x as isize + dx * s as isize;
+        if yy < 0 || xx < 0 || yy >= h as isize || xx >= w as isize {
+            return None;
+        }
+        let j = yy as usize * w + xx as usize;
+        if usable.is_some_and(|k| k[j] == SKIPPED) {
+            return None;
+        }
+        f[k] = vals[j] - base;
+    }
+    Some(f)
+}
+
+/// The samples of one pass: (vertical?, first row, row step, first column, column step).
+fn passes(s: usize) -> [(bool, usize, usize, usize, usize); 2] {
+    [(true, s, 2 * s, 0, 2 * s), (false, 0, s, s, 2 * s)]
+}
+
+/// Fit one pass's stencil weights on the source (encoder only).
+fn fit(p: &Plane, s: usize, pass: usize) -> [i16; NF] {
+    let (w, h) = (p.width, p.height);
+    let (vert, r0, rs, c0, cs) = passes(s)[pass];
+    let mut n = Normal::<NF>::new();
+    let src = p.values;
+    for y in (r0..h).step_by(rs) {
+        for x in (c0..w).step_by(cs) {
+            let i = y * w + x;
+            if p.kinds[i] == SKIPPED {
+                continue;
+            }
+            let interior = if vert {
+                y >= 3 * s && y + 3 * s < h
+            } else {
+                x >= 3 * s && x + 3 * s < w
+            };
+            if !interior {
+                continue;
+            }
+            let st = if vert { s * w } else { s };
+            let at = |k: isize| src[(i as isize + k * st as isize) as usize];
+            let base = round_div(-at(-3) + 9 * at(-1) + 9 * at(1) - at(3), 16);
+            if let Some(f) = features(src, Some(p.kinds), (w, h), (y, x, s), pass, base) {
+                n.add(&f, (src[i] - base) as f64);
+            }
+        }
+    }
+    n.solve()
+}
+
+/// Code (encoder) or decode every sample of the plane. `weights` holds the least-squares
+/// weights per (level, pass), finest level last: the encoder fills it, the decoder reads it.
+pub fn run<C: BinCoder>(
+    p: &Plane,
+    cfg: Config,
+    weights: &mut Vec<[i16; NF]>,
+    coder: &mut C,
+) -> Result<State> {
+    let (w, h) = (p.width, p.height);
+    let mut st = State::new(w * h);
+    let mut known = vec![false; w * h];
+    let mut lvl_of = vec![0u8; w * h];
+    let big = 1usize << cfg.levels;
+    let mid = p.lo + (p.hi - p.lo) / 2;
+    let bin = p.bin;
+    // 1. The anchor grid, MED on the subsampled grid.
+    for y in (0..h).step_by(big) {
+        for x in (0..w).step_by(big) {
+            let i = y * w + x;
+            let g = |dx: isize, dy: isize| -> Option<usize> {
+                let xx = x as isize + dx * big as isize;
+                let yy = y as isize + dy * big as isize;
+                (xx >= 0 && yy >= 0 && xx < w as isize).then(|| yy as usize * w + xx as usize)
+            };
+            let nb = [g(-1, 0), g(0, -1), g(-1, -1), g(1, -1)];
+            let [left, top, tl, tr] = nb.map(|j| j.map(|j| st.rec[j]));
+            let a = left.or(top).unwrap_or(mid);
+            let b = top.unwrap_or(a);
+            let c = tl.unwrap_or(a);
+            let d = tr.unwrap_or(b);
+            let pred = if c >= a.max(b) {
+                a.min(b)
+            } else if c <= a.min(b) {
+                a.max(b)
+            } else {
+                a + b - c
+            };
+            let mut er = 0i64;
+            let mut cnt = 0i64;
+            let mut sg = 0i32;
+            for j in nb.into_iter().flatten() {
+                er += st.res[j] as i64;
+                cnt += 1;
+                sg += st.sign[j] as i32;
+            }
+            let act = (a - c).abs() + (b - c).abs() + (d - b).abs() + er;
+            let err = er / cnt.max(1);
+            st.code(
+                p,
+                i,
+                pred,
+                || Ctx {
+                    act: quarter_bins(act, bin),
+                    err: quarter_bins(err, bin),
+                    sign: sg,
+                    level: LEVELS - 1,
+                },
+                coder,
+            )?;
+            known[i] = true;
+            lvl_of[i] = (LEVELS - 1) as u8;
+        }
+    }
+    // 2. The levels, coarse to fine.
+    let mut next_weights = 0;
+    for l in (1..=cfg.levels).rev() {
+        let s = 1usize << (l - 1);
+        let lvl = (l as usize - 1).min(LEVELS - 2) as u8;
+        for (pass, (vert, r0, rs, c0, cs)) in passes(s).into_iter().enumerate() {
+            let coef = if cfg.ls_levels >= l {
+                if C::ENCODES {
+                    weights.push(fit(p, s, pass));
+                }
+                let c = *weights.get(next_weights).ok_or_else(|| {
+                    crate::error::Error::corrupt("residual section: missing stencil weights")
+                })?;
+                next_weights += 1;
+                Some(c)
+            } else {
+                None
+            };
+            let (len, step) = if vert { (h, s * w) } else { (w, s) };
+            for y in (r0..h).step_by(rs) {
+                for x in (c0..w).step_by(cs) {
+                    let i = y * w + x;
+                    let pos = if vert { y } else { x };
+                    let at = |k: isize| -> Option<i64> {
+                        let q = pos as isize + k * s as isize;
+                        (q >= 0 && q < len as isize)
+                            .then(|| st.rec[(i as isize + k * step as isize) as usize])
+                    };
+                    let b = at(-1).expect("the point before is inside");
+                    let (a, c, d) = (at(-3), at(1), at(3));
+                    let mut pred = interp1(a, b, c, d);
+                    if let (Some(cf), true) = (coef, a.is_some() && d.is_some()) {
+                        if let Some(f) = features(&st.rec, None, (w, h), (y, x, s), pass, pred) {
+                            let acc: i64 = f.iter().zip(cf).map(|(f, c)| f * c as i64).sum();
+                            pred += round_div(acc, 1 << ls::SHIFT);
+                        }
+                    }
+                    let mut sum = 0i64;
+                    let mut cnt = 0i64;
+                    let mut sg = 0i32;
+                    for (dx, dy) in CTX_NB {
+                        let xx = x as isize + dx * s as isize;
+                        let yy = y as isize + dy * s as isize;
+                        if xx >= 0 && yy >= 0 && (xx as usize) < w && (yy as usize) < h {
+                            let j = yy as usize * w + xx as usize;
+                            if known[j] {
+                                sum += st.res[j] as i64;
+                                cnt += 1;
+                                if lvl_of[j] == lvl {
+                                    sg += st.sign[j] as i32;
+                                }
+                            }
+                        }
+                    }
+                    let r_act = if cnt == 0 { 0 } else { 2 * sum / cnt };
+                    let s_act = match (a, c, d) {
+                        (Some(a), Some(c), Some(d)) => (-a + b + c - d).abs() + (b - c).abs() / 4,
+                        (_, Some(c), _) => (b - c).abs() / 2,
+                        _ => 0,
+                    };
+                    st.code(
+                        p,
+                        i,
+                        pred,
+                        || Ctx {
+                            act: quarter_bins(r_act + s_act, bin),
+                            err: quarter_bins(r_act / 2, bin),
+                            sign: sg,
+                            level: lvl as usize,
+                        },
+                        coder,
+                    )?;
+                    known[i] = true;
+                    lvl_of[i] = lvl;
+                }
+            }
+        }
+    }
+    let _ = FIXED;
+    Ok(st)
+}

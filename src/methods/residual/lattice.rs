@@ -1,0 +1,163 @@
+//! The integer domain the residual layer codes in: every value is `offset + (k · mul) / div`
+//! for an integer k, rounded to the sample type. Detected from the data (the source's own
+//! codes for integer types; whole numbers, decimal steps 0.1 … 0.0001 or a power-of-two
+//! step for floats), so that lossless means exact lattice indices and a bound below half a
+//! step means lossless.
+
+use crate::model::{Raster, SampleType};
+use crate::quant::finish;
+
+/// Largest |k| (and clamp range) the layer codes: keeps every predictor's integer arithmetic
+/// far from i64 overflow (spec/FORMAT.md, residual section).
+pub const MAX_UNITS: i64 = 1 << 38;
+
+/// How lattice indices map to values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Domain {
+    pub mul: f64,
+    pub div: f64,
+    pub offset: f64,
+}
+
+impl Domain {
+    /// The value of index `k` before rounding to the sample type (the decoder's formula:
+    /// one multiplication, one division, one addition, each rounded to nearest f64).
+    #[inline]
+    pub fn raw(&self, k: i64) -> f64 {
+        self.offset + (k as f64 * self.mul) / self.div
+    }
+
+    /// The nearest index of `v`.
+    #[inline]
+    pub fn index(&self, v: f64) -> f64 {
+        ((v - self.offset) * self.div / self.mul).round()
+    }
+
+    /// Value step between neighbouring indices.
+    pub fn unit(&self) -> f64 {
+        (self.mul / self.div).abs()
+    }
+}
+
+/// The indices of `r`'s valid samples on `d`, if every one is exactly on it (0 elsewhere).
+fn exact(r: &Raster, d: Domain) -> Option<Vec<i64>> {
+    let mut out = vec![0i64; r.len()];
+    for (i, &v) in r.data.iter().enumerate() {
+        if !r.is_valid(i) {
+            continue;
+        }
+        let k = d.index(v);
+        if !(k.abs() <= MAX_UNITS as f64) {
+            return None;
+        }
+        let k = k as i64;
+        if finish(d.raw(k), r.sample_type, r.mapping) != v {
+            return None;
+        }
+        out[i] = k;
+    }
+    Some(out)
+}
+
+/// The data's own lattice: integer codes (integer types, or floats holding whole numbers),
+/// a decimal step coarser than float spacing, or the coarsest power of two dividing every
+/// value. `None` when no lattice keeps indices within [`MAX_UNITS`].
+pub fn detect(r: &Raster) -> Option<(Domain, Vec<i64>)> {
+    let m = r.mapping;
+    if r.sample_type.is_integer() {
+        let d = Domain {
+            mul: m.scale,
+            div: 1.0,
+            offset: m.offset,
+        };
+        return exact(r, d).map(|k| (d, k));
+    }
+    let whole = Domain {
+        mul: 1.0,
+        div: 1.0,
+        offset: 0.0,
+    };
+    if let Some(k) = exact(r, whole) {
+        return Some((whole, k));
+    }
+    let (lo, hi) = r.valid_range()?;
+    let amax = lo.abs().max(hi.abs());
+    let eps = if r.sample_type == SampleType::F32 {
+        2f64.powi(-23)
+    } else {
+        2f64.powi(-52)
+    };
+    for digits in 1..=4 {
+        let div = 10f64.powi(digits);
+        // A decimal step finer than twice the float spacing is no lattice: every value
+        // would trivially fit.
+        if 1.0 / div < 2.0 * eps * amax {
+            break;
+        }
+        let d = Domain {
+            mul: 1.0,
+            div,
+            offset: 0.0,
+        };
+        if let Some(k) = exact(r, d) {
+            return Some((d, k));
+        }
+    }
+    // The coarsest power of two dividing every valid value.
+    let mut e_min = i32::MAX;
+    for (i, &v) in r.data.iter().enumerate() {
+        if r.is_valid(i) && v != 0.0 {
+            e_min = e_min.min(pow2_exponent(v));
+        }
+    }
+    if e_min == i32::MAX {
+        e_min = 0;
+    }
+    let d = Domain {
+        mul: 2f64.powi(e_min),
+        div: 1.0,
+        offset: 0.0,
+    };
+    if !d.mul.is_normal() {
+        return None;
+    }
+    exact(r, d).map(|k| (d, k))
+}
+
+/// The exponent of the lowest set bit of a finite non-zero f64's value.
+fn pow2_exponent(v: f64) -> i32 {
+    let bits = v.to_bits();
+    let exp = ((bits >> 52) & 0x7ff) as i32;
+    let mant = if exp == 0 {
+        bits & ((1 << 52) - 1)
+    } else {
+        (bits & ((1 << 52) - 1)) | (1 << 52)
+    };
+    let e = if exp == 0 { -1074 } else { exp - 1075 };
+    e + mant.trailing_zeros() as i32
+}
+
+/// A lattice for lossy coding of data without one of its own: a power-of-two step at most
+/// `e / 64`, indices rounded (so they may be off by half a step).
+pub fn approximate(r: &Raster, e: f64) -> Option<(Domain, Vec<i64>)> {
+    let step = 2f64.powi((e / 64.0).log2().floor() as i32);
+    if !step.is_normal() {
+        return None;
+    }
+    let d = Domain {
+        mul: step,
+        div: 1.0,
+        offset: 0.0,
+    };
+    let mut out = vec![0i64; r.len()];
+    for (i, &v) in r.data.iter().enumerate() {
+        if r.is_valid(i) {
+            let k = d.index(v);
+            if !(k.abs() <= MAX_UNITS as f64) {
+                return None;
+            }
+            out[i] = k as i64;
+        }
+    }
+    Some((d, out))
+}

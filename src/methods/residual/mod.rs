@@ -1,0 +1,429 @@
+//! The residual layer: every valid sample coded to within the bound on the data's own
+//! integer lattice — predicted from samples already decoded (multilevel interpolation or
+//! the weighted scan predictor, whichever the encoder finds smaller), the prediction error
+//! quantized into bins of odd width (closed loop: the encoder reconstructs exactly as the
+//! decoder will), the bins range coded under adaptive contexts. All decoder arithmetic is
+//! integer until the one lattice-to-value formula (spec/FORMAT.md, residual section).
+
+mod coder;
+mod interp;
+mod lattice;
+mod ls;
+mod method;
+mod plane;
+mod weighted;
+
+pub(crate) use method::Residual;
+
+use crate::container::Header;
+use crate::container::bytes::{ByteReader, PutLe};
+use crate::entropy::range::{Decoder, Encoder};
+use crate::error::{Error, Result};
+use crate::model::{Raster, SampleType};
+use crate::quant::{Errors, finish_value};
+use coder::{BinDecoder, BinEncoder, Models};
+use lattice::{Domain, MAX_UNITS};
+use plane::{CODED, FIXED, Plane, SKIPPED};
+
+const CODING_LATTICE: u8 = 0;
+const PRED_INTERP: u8 = 0;
+const PRED_WEIGHTED: u8 = 1;
+/// Bytes before the stencil weights.
+const FIXED_LEN: usize = 72;
+/// Largest anchor exponent (stride 2^12).
+const MAX_LEVELS: u8 = 12;
+/// Interpolation levels with a least-squares correction, finest first.
+const LS_LEVELS: u32 = 3;
+/// Sub-lattice refinements the encoder considers (bins of (2·⌊d·E/q⌋+1)/d steps).
+const MAX_SUBDIVISION: i64 = 16;
+
+/// The encoder effort without `--effort`. What each effort does in the residual layer:
+/// 1–2 one predictor chosen by rule, 3+ both predictors tried, 5+ also sub-lattice bins.
+pub const DEFAULT_EFFORT: u8 = 5;
+
+/// One way of coding the plane.
+#[derive(Clone, Copy, Debug)]
+enum Predictor {
+    Interp(interp::Config),
+    Weighted,
+}
+
+/// What the encoder settled on, before coding.
+struct Setup {
+    domain: Domain,
+    values: Vec<i64>,
+    lo: i64,
+    hi: i64,
+    bin: i64,
+}
+
+/// The kinds of every sample: fixed (a value in `fixed`, known to the decoder by other
+/// means), skipped (invalid in `mask`) or coded.
+fn kinds(n: usize, mask: Option<&[bool]>, fixed: Option<&[f64]>) -> Vec<u8> {
+    (0..n)
+        .map(|i| {
+            if fixed.is_some_and(|f| !f[i].is_nan()) {
+                FIXED
+            } else if mask.is_some_and(|m| !m[i]) {
+                SKIPPED
+            } else {
+                CODED
+            }
+        })
+        .collect()
+}
+
+/// The interpolation levels for a raster: anchors every 64 samples, fewer on small rasters.
+fn levels_for(w: usize, h: usize) -> u32 {
+    let side = w.max(h).max(2);
+    (usize::BITS - 1 - (side - 1).leading_zeros()).clamp(1, 6)
+}
+
+/// Encode `r` within `e` (0 = lossless). `fixed` holds the values the decoder gets
+/// elsewhere (flat regions; NaN elsewhere), samples `r` marks invalid.
+pub(crate) fn encode(
+    r: &Raster,
+    header: &Header,
+    e: f64,
+    fixed: Option<&[f64]>,
+    effort: u8,
+) -> Result<(Vec<u8>, f64)> {
+    if !(e >= 0.0 && e.is_finite()) {
+        return Err(Error::invalid(format!(
+            "max error {e} must be a finite number ≥ 0"
+        )));
+    }
+    if !(1..=9).contains(&effort) {
+        return Err(Error::invalid(format!(
+            "effort {} is not in 1..=9",
+            effort
+        )));
+    }
+    let kinds = kinds(r.len(), r.mask.as_deref(), fixed);
+    let (w, h) = (r.width, r.height);
+    let levels = levels_for(w, h);
+    let preds: Vec<Predictor> = {
+        let interp = Predictor::Interp(interp::Config {
+            levels,
+            ls_levels: LS_LEVELS.min(levels),
+        });
+        interp_or_weighted(interp, e, effort)
+    };
+    // Lossy coding may need a safety margin for the final rounding to the sample type;
+    // try without first, and the encoder checks the bound on the decoder's values.
+    let mut last = None;
+    for margin in [false, true] {
+        let Some(mut setup) = setup(r, e, margin, effort)? else {
+            break;
+        };
+        if let Some(f) = fixed {
+            for (i, &v) in f.iter().enumerate() {
+                if !v.is_nan() {
+                    setup.values[i] = setup.domain.index(v).clamp(
+                        -MAX_UNITS as f64,
+                        MAX_UNITS as f64,
+                    ) as i64;
+                }
+            }
+        }
+        let mut best: Option<Vec<u8>> = None;
+        for &pred in &preds {
+            let p = Plane {
+                width: w,
+                height: h,
+                kinds: &kinds,
+                values: &setup.values,
+                lo: setup.lo,
+                hi: setup.hi,
+                bin: setup.bin,
+            };
+            let (payload, rec) = code(&p, pred, &setup)?;
+            let mut errs = Errors::default();
+            for i in 0..r.len() {
+                if r.is_valid(i) {
+                    errs.add(finish_value(setup.domain.raw(rec[i]), header), r.data[i]);
+                }
+            }
+            if errs.max > e {
+                last = Some(errs.max);
+                best = None;
+                break;
+            }
+            let mut payload = payload;
+            payload[32..40].copy_from_slice(&errs.max.to_le_bytes());
+            if best.as_ref().is_none_or(|b| payload.len() < b.len()) {
+                best = Some(payload);
+            }
+        }
+        if let Some(b) = best {
+            let bound = f64::from_le_bytes(b[32..40].try_into().expect("8 bytes"));
+            return Ok((b, bound));
+        }
+        if e == 0.0 {
+            break;
+        }
+    }
+    Err(Error::unmet(match last {
+        Some(m) => format!(
+            "the residual layer cannot keep this raster within {} (it reached {})",
+            crate::metrics::num(e),
+            crate::metrics::num(m)
+        ),
+        None => "the residual layer has no integer lattice for these values within its range"
+            .to_string(),
+    }))
+}
+
+/// Which predictors to try: both from effort 3; below, multilevel interpolation where bins
+/// are wide (it wins from about a bin of 3 lattice steps) and the weighted scan otherwise.
+fn interp_or_weighted(interp: Predictor, e: f64, effort: u8) -> Vec<Predictor> {
+    if effort >= 3 {
+        vec![interp, Predictor::Weighted]
+    } else if e == 0.0 {
+        vec![Predictor::Weighted]
+    } else {
+        vec![interp]
+    }
+}
+
+/// The lattice, units and bin width for bound `e`; `None` when there is nothing to try.
+fn setup(r: &Raster, e: f64, margin: bool, effort: u8) -> Result<Option<Setup>> {
+    let float_out = matches!(r.sample_type, SampleType::F32 | SampleType::F64);
+    let (domain, values, exact) = match lattice::detect(r) {
+        Some((d, k)) => (d, k, true),
+        None if e > 0.0 => match lattice::approximate(r, e) {
+            Some((d, k)) => (d, k, false),
+            None => return Ok(None),
+        },
+        None => return Ok(None),
+    };
+    let (mut lo, mut hi) = (i64::MAX, i64::MIN);
+    for (i, &k) in values.iter().enumerate() {
+        if r.is_valid(i) {
+            lo = lo.min(k);
+            hi = hi.max(k);
+        }
+    }
+    if lo > hi {
+        (lo, hi) = (0, 0);
+    }
+    let unit = domain.unit();
+    let mut budget = e;
+    if !exact {
+        budget -= unit / 2.0;
+    }
+    if margin {
+        let amax = r.valid_range().map_or(0.0, |(a, b)| a.abs().max(b.abs())) + e;
+        budget -= amax
+            * if r.sample_type == SampleType::F64 {
+                2f64.powi(-51)
+            } else {
+                2f64.powi(-22)
+            };
+    }
+    let eu = (budget / unit).max(0.0);
+    // Sub-lattice bins: units of 1/d step, the d giving the widest bin per step.
+    let mut d = 1i64;
+    if float_out && eu >= 0.5 && effort >= 5 && eu < 1e6 {
+        let width = |d: i64| (2.0 * (d as f64 * eu).floor() + 1.0) / d as f64;
+        for c in 2..=MAX_SUBDIVISION {
+            if width(c) > width(d) {
+                d = c;
+            }
+        }
+    }
+    let bin = 2.0 * (d as f64 * eu).floor() + 1.0;
+    let bin = bin.min(MAX_UNITS as f64) as i64;
+    let (lo, hi) = (lo * d, hi * d);
+    if lo < -MAX_UNITS || hi > MAX_UNITS {
+        return Ok(None);
+    }
+    let values = if d > 1 {
+        values.into_iter().map(|k| k * d).collect()
+    } else {
+        values
+    };
+    Ok(Some(Setup {
+        domain: Domain {
+            div: domain.div * d as f64,
+            ..domain
+        },
+        values,
+        lo,
+        hi,
+        bin,
+    }))
+}
+
+/// Code the plane with one predictor: the payload (max error still 0) and the
+/// reconstruction in units.
+fn code(p: &Plane, pred: Predictor, s: &Setup) -> Result<(Vec<u8>, Vec<i64>)> {
+    let mut c = BinEncoder {
+        m: Models::new(),
+        enc: Encoder::with_capacity(p.kinds.len() / 4),
+    };
+    let (code, levels, weights, st) = match pred {
+        Predictor::Interp(cfg) => {
+            let mut wts = Vec::new();
+            let st = interp::run(p, cfg, &mut wts, &mut c)?;
+            let flat: Vec<i16> = wts.iter().flatten().copied().collect();
+            (PRED_INTERP, cfg.levels as u8, (wts.len(), flat), st)
+        }
+        Predictor::Weighted => {
+            let wts = weighted::fit(p);
+            let st = weighted::run(p, &wts, &mut c)?;
+            let flat: Vec<i16> = wts.iter().flatten().copied().collect();
+            (PRED_WEIGHTED, 0, (wts.len(), flat), st)
+        }
+    };
+    let coded = p.kinds.iter().filter(|&&k| k == CODED).count() as u64;
+    let mut out = Vec::new();
+    out.put_u8(CODING_LATTICE);
+    out.put_u8(code);
+    out.put_u8(levels);
+    out.put_u8(weights.0 as u8);
+    out.put_u32(0);
+    out.put_f64(s.domain.mul);
+    out.put_f64(s.domain.div);
+    out.put_f64(s.domain.offset);
+    out.put_f64(0.0);
+    out.put_u64(p.bin as u64);
+    out.put_u64(p.lo as u64);
+    out.put_u64(p.hi as u64);
+    out.put_u64(coded);
+    debug_assert_eq!(out.len(), FIXED_LEN);
+    for w in &weights.1 {
+        out.extend_from_slice(&w.to_le_bytes());
+    }
+    out.extend_from_slice(&c.enc.finish());
+    Ok((out, st.rec))
+}
+
+/// Decode a residual payload. `fixed` holds the values of samples known by other means
+/// (flat regions), NaN elsewhere.
+pub(crate) fn decode(
+    payload: &[u8],
+    header: &Header,
+    mask: Option<&[bool]>,
+    fixed: Option<&[f64]>,
+) -> Result<Vec<f64>> {
+    let mut rd = ByteReader::new(payload, "residual section");
+    let coding = rd.u8("coding")?;
+    if coding != CODING_LATTICE {
+        return Err(rd.corrupt(format!("coding {coding} is not defined")));
+    }
+    let pred = rd.u8("predictor")?;
+    let levels = rd.u8("levels")?;
+    let nweights = rd.u8("weight sets")? as usize;
+    let cfg = match pred {
+        PRED_INTERP => {
+            if !(1..=MAX_LEVELS).contains(&levels) {
+                return Err(rd.corrupt(format!("{levels} interpolation levels (1 ..= 12)")));
+            }
+            if nweights % 2 != 0 || nweights > 2 * levels.min(4) as usize {
+                return Err(rd.corrupt(format!("{nweights} weight sets for {levels} levels")));
+            }
+            Predictor::Interp(interp::Config {
+                levels: levels as u32,
+                ls_levels: nweights as u32 / 2,
+            })
+        }
+        PRED_WEIGHTED => {
+            if levels != 0 || nweights != weighted::CLASSES {
+                return Err(rd.corrupt("weighted predictor: levels must be 0 and weight sets 8"));
+            }
+            Predictor::Weighted
+        }
+        _ => return Err(rd.corrupt(format!("predictor {pred} is not defined"))),
+    };
+    if rd.u32("reserved")? != 0 {
+        return Err(rd.corrupt("reserved field is not zero"));
+    }
+    let mul = rd.finite_f64("mul")?;
+    let div = rd.finite_f64("div")?;
+    let offset = rd.finite_f64("offset")?;
+    if mul == 0.0 || !(div > 0.0) {
+        return Err(rd.corrupt("mul must be ≠ 0 and div > 0"));
+    }
+    let bound = rd.finite_f64("max error")?;
+    if bound < 0.0 {
+        return Err(rd.corrupt("max error is negative"));
+    }
+    let bin = rd.u64("bin width")?;
+    if bin % 2 == 0 || bin > MAX_UNITS as u64 {
+        return Err(rd.corrupt(format!("bin width {bin} is not odd in 1 ..= 2^38")));
+    }
+    let lo = rd.u64("lo")? as i64;
+    let hi = rd.u64("hi")? as i64;
+    if !(-MAX_UNITS <= lo && lo <= hi && hi <= MAX_UNITS) {
+        return Err(rd.corrupt(format!("range {lo} ..= {hi} is outside ±2^38")));
+    }
+    let coded = rd.u64("coded count")?;
+    let n = header.samples() as usize;
+    let (w, h) = (header.width as usize, header.height as usize);
+    if fixed.is_some_and(|f| f.len() != n) || mask.is_some_and(|m| m.len() != n) {
+        return Err(Error::corrupt("residual section: mask and raster sizes differ"));
+    }
+    let kinds = kinds(n, mask, fixed);
+    let want = kinds.iter().filter(|&&k| k == CODED).count() as u64;
+    if coded != want {
+        return Err(rd.corrupt(format!("codes {coded} samples, the raster has {want}")));
+    }
+    let nf = match cfg {
+        Predictor::Interp(_) => interp::NF,
+        Predictor::Weighted => weighted::NF,
+    };
+    let mut flat_w = Vec::with_capacity(nweights * nf);
+    for _ in 0..nweights * nf {
+        flat_w.push(rd.u16("stencil weight")? as i16);
+    }
+    let stream = rd.take(rd.remaining(), "bins")?;
+    let domain = Domain { mul, div, offset };
+    let mut values = vec![0i64; n];
+    if let Some(f) = fixed {
+        for (i, &v) in f.iter().enumerate() {
+            if !v.is_nan() {
+                values[i] = domain.index(v).clamp(-MAX_UNITS as f64, MAX_UNITS as f64) as i64;
+            }
+        }
+    }
+    let p = Plane {
+        width: w,
+        height: h,
+        kinds: &kinds,
+        values: &values,
+        lo,
+        hi,
+        bin: bin as i64,
+    };
+    let mut c = BinDecoder {
+        m: Models::new(),
+        dec: Decoder::new(stream)?,
+        max_bin: ((hi - lo) as u64) / bin + 1,
+    };
+    let st = match cfg {
+        Predictor::Interp(cfg) => {
+            let mut wts: Vec<[i16; interp::NF]> = flat_w
+                .chunks_exact(interp::NF)
+                .map(|c| c.try_into().expect("NF weights"))
+                .collect();
+            interp::run(&p, cfg, &mut wts, &mut c)?
+        }
+        Predictor::Weighted => {
+            let wts: Vec<[i16; weighted::NF]> = flat_w
+                .chunks_exact(weighted::NF)
+                .map(|c| c.try_into().expect("NF weights"))
+                .collect();
+            weighted::run(&p, &wts, &mut c)?
+        }
+    };
+    c.dec.finish()?;
+    let fill = header.nodata.unwrap_or(f64::NAN);
+    Ok((0..n)
+        .map(|i| match kinds[i] {
+            SKIPPED => fill,
+            FIXED => fixed.map_or(fill, |f| f[i]),
+            _ => finish_value(domain.raw(st.rec[i]), header),
+        })
+        .collect())
+}
