@@ -50,7 +50,8 @@ pub use codec::{
 pub use container::Limits;
 pub use error::{Error, Result};
 pub use methods::{
-    DEFAULT_EFFORT, FisOptions, HaarOptions, Method, MethodParams, Norm, SibsonOptions, Site, StatValue, Stats,
+    DEFAULT_EFFORT, FisOptions, HaarOptions, Method, MethodParams, Norm, SibsonOptions, Site,
+    StatValue, Stats,
 };
 pub use model::{GeoKeys, Georef, Raster, RasterType, SampleType, ValueMapping, Window};
 pub use quant::ErrorBound;

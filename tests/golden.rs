@@ -15,8 +15,19 @@ fn dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden")
 }
 
-/// The source of every golden file: a 64×48 window of the Kauai SRTM tile with voids.
+/// The source of every golden file but the coast ones: a 64×48 window of the Kauai SRTM
+/// tile with voids.
 fn source() -> vtz::Raster {
+    window(448, 960)
+}
+
+/// The source of the coast golden files: a 64×48 window of Kauai with voids, land and
+/// 1 474 samples of sea (exact zeros, a flat region).
+fn coast() -> vtz::Raster {
+    window(376, 968)
+}
+
+fn window(x: usize, y: usize) -> vtz::Raster {
     let bytes = vtz::encode(
         &read_corpus("srtm3_N22W160_kauai.hgt"),
         &EncodeOptions::default(),
@@ -24,8 +35,8 @@ fn source() -> vtz::Raster {
     .unwrap();
     let opts = decode_opts(|o| {
         o.window = Some(Window {
-            x: 448,
-            y: 960,
+            x,
+            y,
             width: 64,
             height: 48,
         })
@@ -73,7 +84,39 @@ fn cases() -> Vec<(&'static str, EncodeOptions, f64, Option<&'static str>)> {
             0.0,
             Some(GDAL_METADATA),
         ),
+        (
+            // Effort 1 takes the rule's predictor: lossless → the weighted scan.
+            "v1_kauai_crop_residual",
+            {
+                let mut o = encode_opts(&[Method::RESIDUAL], None);
+                o.effort = Some(1);
+                o
+            },
+            0.0,
+            None,
+        ),
+        (
+            "v1_kauai_crop_residual_lossy",
+            encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(2.0))),
+            2.0,
+            None,
+        ),
+        (
+            "v1_kauai_coast_flat",
+            encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(8.0))),
+            8.0,
+            None,
+        ),
     ]
+}
+
+/// The source of golden file `name`.
+fn source_of(name: &str) -> vtz::Raster {
+    if name.contains("coast") {
+        coast()
+    } else {
+        source()
+    }
 }
 
 fn as_f32_bytes(r: &vtz::Raster) -> Vec<u8> {
@@ -95,7 +138,7 @@ fn golden_files_decode_to_their_expected_samples() {
                 "{} is missing (VTZ_BLESS_GOLDEN=1 writes it)",
                 vtz_path.display()
             );
-            let mut src = source();
+            let mut src = source_of(name);
             src.gdal_metadata = gdal_metadata.map(String::from);
             let bytes = vtz::encode(&src, &opts).unwrap();
             std::fs::write(&vtz_path, &bytes).unwrap();
@@ -117,7 +160,7 @@ fn golden_files_decode_to_their_expected_samples() {
             exp_path.display()
         );
         // And the decode is within the bound it claims, against the source window.
-        let c = vtz::metrics::compare(&source(), &r).unwrap();
+        let c = vtz::metrics::compare(&source_of(name), &r).unwrap();
         assert_eq!((c.lost, c.invented), (0, 0));
         if bound == 0.0 {
             assert!(c.identical, "{name}");
@@ -174,5 +217,52 @@ fn the_gdal_metadata_section_is_optional_and_strict_about_utf8() {
     assert!(
         e.to_string().contains("gdal-metadata") && e.to_string().contains("UTF-8"),
         "{e}"
+    );
+}
+
+#[test]
+fn the_residual_and_flat_golden_files_cover_both_predictors_and_every_new_coding() {
+    let read = |name: &str| std::fs::read(dir().join(format!("{name}.vtz"))).unwrap();
+    let mut predictors = Vec::new();
+    for name in [
+        "v1_kauai_crop_residual",
+        "v1_kauai_crop_residual_lossy",
+        "v1_kauai_coast_flat",
+    ] {
+        let bytes = read(name);
+        let info = vtz::info(&bytes, vtz::Limits::default()).unwrap();
+        let p = &info.sections[info.primary];
+        assert_eq!((p.name.as_str(), p.code), ("residual", 6), "{name}");
+        predictors.push(bytes[p.offset as usize + 1]);
+    }
+    predictors.sort();
+    predictors.dedup();
+    assert_eq!(
+        predictors,
+        [0, 1],
+        "interpolation (0) and weighted (1) predictors"
+    );
+    // The coast file holds the flat section (type 9) and a context-coded mask (coding 1).
+    let bytes = read("v1_kauai_coast_flat");
+    let info = vtz::info(&bytes, vtz::Limits::default()).unwrap();
+    let names: Vec<_> = info
+        .sections
+        .iter()
+        .map(|s| (s.name.as_str(), s.code, s.required))
+        .collect();
+    assert_eq!(names[..2], [("mask", 1, true), ("flat", 9, true)]);
+    assert_eq!(bytes[info.sections[0].offset as usize], 1, "mask coding 1");
+    // Its sea decodes to exact zeros.
+    let r = vtz::decode(&bytes).unwrap();
+    let src = coast();
+    let sea = (0..src.len())
+        .filter(|&i| src.is_valid(i) && src.data[i] == 0.0)
+        .count();
+    let kept = (0..src.len())
+        .filter(|&i| src.is_valid(i) && src.data[i] == 0.0 && r.data[i] == 0.0)
+        .count();
+    assert!(
+        sea > 1400 && kept >= 1024 && kept + 60 >= sea,
+        "{kept} of {sea} sea samples exact"
     );
 }

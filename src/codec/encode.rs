@@ -79,7 +79,14 @@ pub(crate) fn encode_once(
     let e = opts.max_error.map(|b| b.absolute(header.range));
     // Flat regions decode exactly whatever the method: they get a section of their own,
     // and the methods see them as samples they need not represent.
-    let flat = crate::model::flat::find(raster);
+    // A lossless encode keeps them exact anyway, and so does a bound below half the data's
+    // own step (only exact values meet it), so they get no section then.
+    let flat = match e {
+        Some(b) if b > 0.0 && raster.value_step().is_none_or(|q| b >= q / 2.0) => {
+            crate::model::flat::find(raster)
+        }
+        _ => None,
+    };
     let masked;
     let (source, raster) = match &flat {
         Some(f) => {
@@ -167,7 +174,7 @@ pub(crate) fn encode_once(
             sections.push(Section {
                 kind: SectionKind::MASK,
                 flags: SF_REQUIRED,
-                payload: container::mask::encode(m),
+                payload: container::mask::encode(m, source.width),
             });
         }
     }
@@ -175,7 +182,7 @@ pub(crate) fn encode_once(
         sections.push(Section {
             kind: SectionKind::FLAT,
             flags: SF_REQUIRED,
-            payload: container::flat::encode(f, raster.width),
+            payload: container::flat::encode(f, source.width, source.mask.as_deref()),
         });
     }
     header.primary = (sections.len() + primary) as u16;

@@ -1,18 +1,19 @@
-//! The flat-regions section: which samples lie in a flat region (run lengths, like the
-//! mask) and each region's value; a decoder labels the regions itself (4-connected, in
-//! raster order: `model::flat::label`) and gives every sample of region k value k.
+//! The flat-regions section: which samples lie in a flat region (a context-coded bitmap,
+//! `bitmap`) and each region's value; a decoder labels the regions itself
+//! (4-connected, in raster order: `model::flat::label`) and gives every sample of region k
+//! value k.
 
+use super::bitmap;
 use super::bytes::{ByteReader, PutLe};
-use crate::entropy::{self, varint};
 use crate::error::Result;
 use crate::model::flat::label;
 
-/// Coding 0: alternating run lengths (not flat first) as varints, raw DEFLATE.
-const CODING_RUNS: u8 = 0;
+/// Coding 0: the bitmap of valid samples, range coded with neighbour contexts.
+const CODING_CONTEXT: u8 = 0;
 
-/// Encode the flat regions `values` (per sample its region's value, NaN elsewhere) of a
-/// `w`-wide raster.
-pub fn encode(values: &[f64], w: usize) -> Vec<u8> {
+/// Encode the flat regions `values` (per sample its region's value, NaN elsewhere; only
+/// valid samples per `mask` may be flat) of a `w`-wide raster.
+pub fn encode(values: &[f64], w: usize, mask: Option<&[bool]>) -> Vec<u8> {
     let flat: Vec<bool> = values.iter().map(|v| !v.is_nan()).collect();
     let (lab, count) = label(&flat, w);
     let mut region_values = vec![0f64; count as usize];
@@ -21,21 +22,8 @@ pub fn encode(values: &[f64], w: usize) -> Vec<u8> {
             region_values[l as usize - 1] = values[i];
         }
     }
-    let mut runs = Vec::new();
-    let mut current = false;
-    let mut run: u64 = 0;
-    for &b in &flat {
-        if b == current {
-            run += 1;
-        } else {
-            varint::put_u64(&mut runs, run);
-            current = b;
-            run = 1;
-        }
-    }
-    varint::put_u64(&mut runs, run);
     let mut out = Vec::new();
-    out.put_u8(CODING_RUNS);
+    out.put_u8(CODING_CONTEXT);
     out.put_u8(0);
     out.put_u8(0);
     out.put_u8(0);
@@ -44,7 +32,7 @@ pub fn encode(values: &[f64], w: usize) -> Vec<u8> {
     for v in region_values {
         out.put_f64(v);
     }
-    out.extend_from_slice(&entropy::deflate(&runs));
+    out.extend_from_slice(&bitmap::encode(&flat, w, |i| mask.is_none_or(|m| m[i])));
     out
 }
 
@@ -53,7 +41,7 @@ pub fn encode(values: &[f64], w: usize) -> Vec<u8> {
 pub fn decode(payload: &[u8], w: usize, n: usize, mask: Option<&[bool]>) -> Result<Vec<f64>> {
     let mut r = ByteReader::new(payload, "flat section");
     let coding = r.u8("coding")?;
-    if coding != CODING_RUNS {
+    if coding != CODING_CONTEXT {
         return Err(r.corrupt(format!("flat coding {coding} is not defined")));
     }
     for _ in 0..3 {
@@ -77,45 +65,32 @@ pub fn decode(payload: &[u8], w: usize, n: usize, mask: Option<&[bool]>) -> Resu
     if values.iter().any(|v| !v.is_finite()) {
         return Err(r.corrupt("a region value is not finite"));
     }
-    let rest = r.take(r.remaining(), "runs")?;
-    let runs = entropy::inflate(rest, (n + 1).saturating_mul(10), "flat section")?;
-    let mut vr = varint::VarintReader::new(&runs, "flat section runs");
-    let mut flat = Vec::with_capacity(n);
-    let mut current = false;
-    let mut k = 0usize;
-    while flat.len() < n {
-        let run = vr.u64()?;
-        if run > (n - flat.len()) as u64 {
-            return Err(r.corrupt("runs add up to more samples than the raster has"));
-        }
-        if run == 0 && k > 0 {
-            return Err(r.corrupt("empty run after the first"));
-        }
-        k += 1;
-        flat.extend(std::iter::repeat_n(current, run as usize));
-        current = !current;
+    if mask.is_some_and(|m| m.len() != n) {
+        return Err(r.corrupt("mask size differs"));
     }
-    vr.finish()?;
+    let stream = r.take(r.remaining(), "bitmap")?;
+    let flat = bitmap::decode(stream, w, n, |i| mask.is_none_or(|m| m[i]))?;
     let seen = flat.iter().filter(|&&b| b).count() as u64;
     if seen != flat_count {
         return Err(r.corrupt(format!(
-            "runs give {seen} flat samples, the header says {flat_count}"
+            "the bitmap has {seen} flat samples, the header says {flat_count}"
         )));
-    }
-    if let Some(m) = mask {
-        if flat.iter().zip(m).any(|(&f, &v)| f && !v) {
-            return Err(r.corrupt("a flat sample is nodata"));
-        }
     }
     let (lab, found) = label(&flat, w);
     if found as usize != count {
         return Err(r.corrupt(format!(
-            "the runs make {found} regions, the header says {count}"
+            "the bitmap makes {found} regions, the header says {count}"
         )));
     }
     Ok(lab
         .iter()
-        .map(|&l| if l == 0 { f64::NAN } else { values[l as usize - 1] })
+        .map(|&l| {
+            if l == 0 {
+                f64::NAN
+            } else {
+                values[l as usize - 1]
+            }
+        })
         .collect())
 }
 
@@ -137,7 +112,7 @@ mod tests {
                 }
             }
         }
-        let p = encode(&v, w);
+        let p = encode(&v, w, None);
         let back = decode(&p, w, w * h, None).unwrap();
         for (a, b) in v.iter().zip(&back) {
             assert!(a == b || (a.is_nan() && b.is_nan()));
@@ -145,9 +120,16 @@ mod tests {
         for cut in 0..p.len() {
             assert!(decode(&p[..cut], w, w * h, None).is_err(), "prefix {cut}");
         }
-        // A flat sample over nodata is corrupt.
+        // With a mask, nodata samples cost nothing and cannot be flat.
         let mut mask = vec![true; w * h];
-        mask[0] = false;
-        assert!(decode(&p, w, w * h, Some(&mask)).is_err());
+        mask[w * h - 1] = false;
+        v[w * h - 1] = f64::NAN;
+        let p = encode(&v, w, Some(&mask));
+        let back = decode(&p, w, w * h, Some(&mask)).unwrap();
+        for (a, b) in v.iter().zip(&back) {
+            assert!(a == b || (a.is_nan() && b.is_nan()));
+        }
+        // The wrong sample count is rejected.
+        assert!(decode(&p, w, w * h - 1, None).is_err());
     }
 }

@@ -1,4 +1,6 @@
-//! The validity-mask section: run lengths of valid/invalid samples, varint + DEFLATE coded.
+//! The validity-mask section: run lengths of valid/invalid samples, varint + DEFLATE coded
+//! (coding 0), or the bitmap context coded (coding 1, `bitmap`); the writer keeps the
+//! smaller.
 
 use super::bytes::{ByteReader, PutLe};
 use crate::entropy::{self, varint};
@@ -7,8 +9,23 @@ use crate::error::Result;
 /// Mask coding 0: alternating run lengths (valid first) as LEB128 varints, raw DEFLATE.
 const CODING_RUNS_DEFLATE: u8 = 0;
 
-/// Encode a mask (`true` = valid) into a mask-section payload.
-pub fn encode(mask: &[bool]) -> Vec<u8> {
+/// Mask coding 1: the invalid bits, context coded (`bitmap`).
+const CODING_CONTEXT: u8 = 1;
+
+/// Encode the mask (`true` = valid) of a `w`-wide raster into a mask-section payload: the
+/// smaller of the two codings.
+pub fn encode(mask: &[bool], w: usize) -> Vec<u8> {
+    let runs = encode_runs(mask);
+    let invalid: Vec<bool> = mask.iter().map(|&b| !b).collect();
+    let mut ctx = Vec::new();
+    ctx.put_u8(CODING_CONTEXT);
+    ctx.put_u64(invalid.iter().filter(|&&b| b).count() as u64);
+    ctx.extend_from_slice(&super::bitmap::encode(&invalid, w, |_| true));
+    if ctx.len() < runs.len() { ctx } else { runs }
+}
+
+/// Coding 0 of a mask.
+fn encode_runs(mask: &[bool]) -> Vec<u8> {
     let mut runs = Vec::new();
     let mut current = true;
     let mut run: u64 = 0;
@@ -33,16 +50,26 @@ pub fn encode(mask: &[bool]) -> Vec<u8> {
     out
 }
 
-/// Decode a mask-section payload for a raster of `n` samples.
-pub fn decode(payload: &[u8], n: usize) -> Result<Vec<bool>> {
+/// Decode a mask-section payload for a `w`-wide raster of `n` samples.
+pub fn decode(payload: &[u8], w: usize, n: usize) -> Result<Vec<bool>> {
     let mut r = ByteReader::new(payload, "mask section");
     let coding = r.u8("coding")?;
-    if coding != CODING_RUNS_DEFLATE {
+    if coding != CODING_RUNS_DEFLATE && coding != CODING_CONTEXT {
         return Err(r.corrupt(format!("mask coding {coding} is not defined")));
     }
     let invalid = r.u64("invalid count")?;
     if invalid > n as u64 {
         return Err(r.corrupt(format!("invalid count {invalid} exceeds {n} samples")));
+    }
+    if coding == CODING_CONTEXT {
+        let bits = super::bitmap::decode(r.take(r.remaining(), "bitmap")?, w.max(1), n, |_| true)?;
+        let seen = bits.iter().filter(|&&b| b).count() as u64;
+        if seen != invalid {
+            return Err(r.corrupt(format!(
+                "the bitmap has {seen} invalid samples, the header says {invalid}"
+            )));
+        }
+        return Ok(bits.into_iter().map(|b| !b).collect());
     }
     let rest = r.take(r.remaining(), "runs")?;
     // n + 1 runs at most, 10 bytes each at most.
@@ -84,12 +111,14 @@ mod tests {
     proptest! {
         #[test]
         fn masks_round_trip(mask in proptest::collection::vec(proptest::bool::weighted(0.8), 1..3000)) {
-            let enc = encode(&mask);
-            prop_assert_eq!(decode(&enc, mask.len()).unwrap(), mask.clone());
+            let enc = encode(&mask, 7);
+            prop_assert_eq!(decode(&enc, 7, mask.len()).unwrap(), mask.clone());
+            let runs = encode_runs(&mask);
+            prop_assert_eq!(decode(&runs, 7, mask.len()).unwrap(), mask.clone());
             // Wrong sample counts are rejected.
-            prop_assert!(decode(&enc, mask.len() + 1).is_err());
+            prop_assert!(decode(&enc, 7, mask.len() + 1).is_err());
             if mask.len() > 1 {
-                prop_assert!(decode(&enc, mask.len() - 1).is_err());
+                prop_assert!(decode(&enc, 7, mask.len() - 1).is_err());
             }
         }
     }
@@ -97,7 +126,7 @@ mod tests {
     #[test]
     fn all_invalid_and_all_valid() {
         for mask in [vec![false; 100], vec![true; 100], vec![false], vec![true]] {
-            assert_eq!(decode(&encode(&mask), mask.len()).unwrap(), mask);
+            assert_eq!(decode(&encode(&mask, 10), 10, mask.len()).unwrap(), mask);
         }
     }
 }

@@ -1,9 +1,10 @@
 //! The `.vtz` byte layout: magic, version, header, a checksummed section directory and the
 //! section payloads (spec/FORMAT.md). Only this module knows section framing.
 
+pub mod bitmap;
 pub mod bytes;
-pub mod header;
 pub mod flat;
+pub mod header;
 pub mod mask;
 
 pub use header::Header;
@@ -371,7 +372,11 @@ impl<R: Read + Seek> ContainerReader<R> {
     pub fn read_mask(&mut self) -> Result<Option<Vec<bool>>> {
         let n = self.header.samples() as usize;
         match self.find(SectionKind::MASK) {
-            Some(i) => Ok(Some(mask::decode(&self.read_section(i)?, n)?)),
+            Some(i) => Ok(Some(mask::decode(
+                &self.read_section(i)?,
+                self.header.width as usize,
+                n,
+            )?)),
             None => Ok(None),
         }
     }

@@ -6,7 +6,7 @@ use super::Raster;
 
 /// Regions smaller than this many samples are not worth a section entry (a value and its
 /// border's run lengths cost more than what the method spends on them).
-pub const MIN_REGION: usize = 64;
+pub const MIN_REGION: usize = 1024;
 
 /// Label the 4-connected components of `flat` (a `w`-wide bitmap) in raster order: the
 /// component holding the first flat sample is 1, the next one not yet labelled 2, and so
@@ -51,8 +51,9 @@ pub(crate) fn label(flat: &[bool], w: usize) -> (Vec<u32>, u32) {
 /// The flat regions of `r`: per sample its region's value, NaN outside every region; `None`
 /// when there is none. Regions are 4-connected runs of one exact value among valid samples,
 /// of at least [`MIN_REGION`] samples. Where two regions of different values touch, the
-/// touching samples on both sides are left out, so that [`label`] of the result gives back
-/// exactly these regions (each of one value) to a decoder that sees only the bitmap.
+/// touching samples on both sides are left out (the rest stays flat, even a piece that this
+/// cuts off), so that [`label`] of the result gives regions of one value each to a decoder
+/// that sees only the bitmap.
 pub(crate) fn find(r: &Raster) -> Option<Vec<f64>> {
     let (w, n) = (r.width, r.len());
     // Components of equal value.
@@ -111,16 +112,10 @@ pub(crate) fn find(r: &Raster) -> Option<Vec<f64>> {
     for i in 0..n {
         flat[i] &= !drop[i];
     }
-    // Pieces that shrank below the minimum go too (dropping never joins two regions).
-    let (lab, count) = label(&flat, w);
-    let mut psize = vec![0usize; count as usize + 1];
-    for &l in &lab {
-        psize[l as usize] += 1;
-    }
     let mut any = false;
     let out: Vec<f64> = (0..n)
         .map(|i| {
-            if lab[i] != 0 && psize[lab[i] as usize] >= MIN_REGION {
+            if flat[i] {
                 any = true;
                 r.data[i]
             } else {

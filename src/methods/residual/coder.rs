@@ -37,16 +37,38 @@ pub struct Ctx {
     pub level: usize,
 }
 
-#[inline]
-fn class(v: u64, t: &[u32]) -> usize {
-    t.iter().take_while(|&&x| x as u64 <= v).count()
+/// The number of thresholds in `t` that are ≤ v.
+const fn class(v: u64, t: &[u32]) -> usize {
+    let mut k = 0;
+    while k < t.len() && t[k] as u64 <= v {
+        k += 1;
+    }
+    k
 }
+
+/// [`class`] of 0..256 against [`ACT_T`] and [`ERR_T`], looked up instead of searched.
+const fn table(t: &[u32]) -> [u8; 256] {
+    let mut out = [0u8; 256];
+    let mut v = 0;
+    while v < 256 {
+        out[v] = class(v as u64, t) as u8;
+        v += 1;
+    }
+    out
+}
+const ACT_CLASS: [u8; 256] = table(&ACT_T);
+const ERR_CLASS: [u8; 256] = table(&ERR_T);
 
 /// Activity class 0..16 of an activity in quarter bins (also the weighted predictor's
 /// least-squares class, halved).
 #[inline]
 pub fn act_class(act: u64) -> usize {
-    class(act, &ACT_T)
+    if act < 256 { ACT_CLASS[act as usize] as usize } else { NA - 1 }
+}
+
+#[inline]
+fn err_class(err: u64) -> usize {
+    if err < 256 { ERR_CLASS[err as usize] as usize } else { NERR - 1 }
 }
 
 /// The adaptive models of one stream.
@@ -70,7 +92,7 @@ impl Models {
 
     #[inline]
     fn index(c: &Ctx) -> (usize, usize) {
-        let zi = (c.level * NA + act_class(c.act)) * NERR + class(c.err, &ERR_T);
+        let zi = (c.level * NA + act_class(c.act)) * NERR + err_class(c.err);
         let si = c.level * NSG + (c.sign.signum() + 1) as usize;
         (zi, si)
     }

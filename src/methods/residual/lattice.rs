@@ -47,7 +47,7 @@ fn exact(r: &Raster, d: Domain) -> Option<Vec<i64>> {
             continue;
         }
         let k = d.index(v);
-        if !(k.abs() <= MAX_UNITS as f64) {
+        if k.is_nan() || k.abs() > MAX_UNITS as f64 {
             return None;
         }
         let k = k as i64;
@@ -153,7 +153,7 @@ pub fn approximate(r: &Raster, e: f64) -> Option<(Domain, Vec<i64>)> {
     for (i, &v) in r.data.iter().enumerate() {
         if r.is_valid(i) {
             let k = d.index(v);
-            if !(k.abs() <= MAX_UNITS as f64) {
+            if k.is_nan() || k.abs() > MAX_UNITS as f64 {
                 return None;
             }
             out[i] = k as i64;

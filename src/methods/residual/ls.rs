@@ -1,6 +1,8 @@
 //! Least-squares stencil weights, fitted by the encoder only (floating point is fine here:
 //! the decoder never fits, it applies the stored integer weights).
 
+#![allow(clippy::needless_range_loop)] // index loops read best in matrix code
+
 /// Weights are stored as i16 in units of 2^-SHIFT.
 pub const SHIFT: u32 = 10;
 /// Fewer samples than this give no fit (all-zero weights).

@@ -139,9 +139,9 @@ pub(crate) fn encode(
             };
             let (payload, rec) = code(&p, pred, &setup)?;
             let mut errs = Errors::default();
-            for i in 0..r.len() {
+            for (i, &k) in rec.iter().enumerate() {
                 if r.is_valid(i) {
-                    errs.add(finish_value(setup.domain.raw(rec[i]), header), r.data[i]);
+                    errs.add(finish_value(setup.domain.raw(k), header), r.data[i]);
                 }
             }
             if errs.max > e {
@@ -342,7 +342,7 @@ pub(crate) fn decode(
     let mul = rd.finite_f64("mul")?;
     let div = rd.finite_f64("div")?;
     let offset = rd.finite_f64("offset")?;
-    if mul == 0.0 || !(div > 0.0) {
+    if mul == 0.0 || div <= 0.0 {
         return Err(rd.corrupt("mul must be ≠ 0 and div > 0"));
     }
     let bound = rd.finite_f64("max error")?;

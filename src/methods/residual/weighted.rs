@@ -129,8 +129,8 @@ impl Wp {
             ws += *wt;
         }
         let mut sum: i128 = (ws >> 1) as i128 - 1;
-        for k in 0..4 {
-            sum += self.pred[k] as i128 * wts[k] as i128;
+        for (p, wt) in self.pred.iter().zip(wts) {
+            sum += *p as i128 * wt as i128;
         }
         let mut p = ((sum * div_lookup(ws - 1) as i128) >> 24) as i64;
         if ((te_n ^ te_w) | (te_n ^ te_nw)) <= 0 {

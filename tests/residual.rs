@@ -1,0 +1,300 @@
+//! The residual layer and flat regions: the bound on random rasters and corpus crops
+//! (exactness when lossless), the data's lattice, `--effort`, and flat regions that decode
+//! to their exact value under every method.
+
+mod common;
+
+use common::{Kind, decode_opts, encode_opts, read_corpus, terrain, tmp, vtz};
+use proptest::prelude::*;
+use vtz::{ErrorBound, Method, Raster, SampleType, Window};
+
+/// The window `w` of `r` (samples, mask and type; no georeferencing needed here).
+fn crop(r: &Raster, w: Window) -> Raster {
+    let mut data = Vec::with_capacity(w.width * w.height);
+    for y in w.y..w.y + w.height {
+        for x in w.x..w.x + w.width {
+            let i = y * r.width + x;
+            data.push(if r.is_valid(i) { r.data[i] } else { f64::NAN });
+        }
+    }
+    let mut c = Raster::from_values(w.width, w.height, data, r.nodata, r.sample_type).unwrap();
+    c.mapping = r.mapping;
+    c
+}
+
+fn residual(r: &Raster, bound: Option<f64>, effort: u8) -> (Vec<u8>, Raster) {
+    let mut o = encode_opts(&[Method::RESIDUAL], bound.map(ErrorBound::Abs));
+    o.effort = Some(effort);
+    let bytes = vtz::encode(r, &o).unwrap();
+    let back = vtz::decode(&bytes).unwrap();
+    (bytes, back)
+}
+
+fn check(r: &Raster, back: &Raster, bound: f64, what: &str) {
+    let c = vtz::metrics::compare(r, back).unwrap();
+    assert_eq!((c.lost, c.invented), (0, 0), "{what}");
+    if bound == 0.0 {
+        assert!(
+            c.identical,
+            "{what}: lossless decode differs (max {})",
+            c.max_error
+        );
+    } else {
+        assert!(c.max_error <= bound, "{what}: {} > {bound}", c.max_error);
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+    #[test]
+    fn random_rasters_keep_the_bound_and_lossless_is_exact(
+        kind in prop::sample::select(vec![Kind::Fbm, Kind::Plateau, Kind::Cliff, Kind::Constant, Kind::Hill]),
+        w in 1usize..70,
+        h in 1usize..70,
+        seed in any::<u64>(),
+        holes in any::<bool>(),
+        st in prop::sample::select(vec![SampleType::I16, SampleType::F32, SampleType::F64]),
+        bound in prop::sample::select(vec![0.0, 0.3, 0.5, 1.0, 2.5, 7.0, 60.0]),
+        effort in prop::sample::select(vec![1u8, 3, 5, 9]),
+    ) {
+        let r = terrain(kind, w, h, seed, holes, st);
+        if r.valid_count() == 0 {
+            return Ok(());
+        }
+        let b = if bound == 0.0 { None } else { Some(bound) };
+        if b.is_none() && st == SampleType::F64 {
+            // f64 noise has no lattice within ±2^38 steps: the residual layer says so, and
+            // `best` stores it losslessly with the grid.
+            let mut o = encode_opts(&[Method::RESIDUAL], None);
+            o.effort = Some(effort);
+            let e = vtz::encode(&r, &o).unwrap_err();
+            prop_assert!(matches!(e, vtz::Error::Unmet { .. }), "{}", e);
+            let bytes = vtz::encode(&r, &encode_opts(&[], None)).unwrap();
+            check(&r, &vtz::decode(&bytes).unwrap(), 0.0, "f64 lossless with best");
+            return Ok(());
+        }
+        let (bytes, back) = residual(&r, b, effort);
+        check(&r, &back, bound, &format!("{kind:?} {w}x{h} {st:?} bound {bound} effort {effort}"));
+        // The decoder is deterministic, and every proper prefix is an error.
+        prop_assert_eq!(common::bits(&vtz::decode(&bytes).unwrap()), common::bits(&back));
+        for n in (0..bytes.len()).step_by(1 + bytes.len() / 40) {
+            prop_assert!(vtz::decode(&bytes[..n]).is_err());
+        }
+    }
+}
+
+#[test]
+fn corpus_crops_keep_the_bound_with_both_predictors() {
+    for name in [
+        "scape_crater.png",
+        "ahn3_delft_dsm_50cm.f32",
+        "nasadem_west_bijou_escarpment_landlab.asc",
+        "srtm3_N22W160_kauai.hgt",
+    ] {
+        let full = read_corpus(name);
+        let r = crop(
+            &full,
+            Window {
+                x: full.width / 4,
+                y: full.height / 4,
+                width: 160.min(full.width / 2),
+                height: 120.min(full.height / 2),
+            },
+        );
+        let range = r.valid_range().unwrap();
+        for bound in [
+            0.0,
+            0.5,
+            1.0,
+            0.001 * (range.1 - range.0),
+            0.01 * (range.1 - range.0),
+        ] {
+            let b = (bound > 0.0).then_some(bound);
+            let mut predictors = std::collections::BTreeSet::new();
+            for effort in [1, 2, 5] {
+                let (bytes, back) = residual(&r, b, effort);
+                check(
+                    &r,
+                    &back,
+                    bound,
+                    &format!("{name} bound {bound} effort {effort}"),
+                );
+                let info = vtz::info(&bytes, Default::default()).unwrap();
+                let s = &info.sections[info.primary];
+                predictors.insert(bytes[s.offset as usize + 1]);
+            }
+            // Effort 1–2 take the rule's predictor, 5 the smaller of both: across efforts
+            // and bounds both predictors get exercised.
+            assert!(!predictors.is_empty());
+        }
+    }
+}
+
+#[test]
+fn decimal_lattice_floats_are_lossless_and_smaller_than_the_grid() {
+    // Heights in 0.1 m steps stored as f32 (as many lidar DEMs are).
+    let (w, h) = (96, 80);
+    let data: Vec<f64> = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            let v = 300.0 + 40.0 * (x / 17.0).sin() * (y / 23.0).cos() + 0.02 * x * y;
+            ((v * 10.0).round() / 10.0) as f32 as f64
+        })
+        .collect();
+    let r = Raster::from_values(w, h, data, None, SampleType::F32).unwrap();
+    let (res, back) = residual(&r, None, 5);
+    check(&r, &back, 0.0, "decimal lattice");
+    let grid = vtz::encode(&r, &encode_opts(&[Method::GRID], None)).unwrap();
+    assert!(
+        res.len() * 2 < grid.len(),
+        "residual {} bytes against grid {}",
+        res.len(),
+        grid.len()
+    );
+    // A bound below half the 0.1 m step is lossless with the residual layer.
+    let (_, back) = residual(&r, Some(0.04), 5);
+    check(&r, &back, 0.0, "below half a step");
+}
+
+/// Samples of 4-connected equal-valued components of at least 1024 valid samples that
+/// touch no other such component: the flat regions as a user sees them (computed here
+/// independently of the library).
+fn flat_samples(r: &Raster) -> Vec<usize> {
+    let (w, n) = (r.width, r.len());
+    let mut comp = vec![usize::MAX; n];
+    let mut sizes = Vec::new();
+    for s in 0..n {
+        if comp[s] != usize::MAX || !r.is_valid(s) {
+            continue;
+        }
+        let id = sizes.len();
+        let mut stack = vec![s];
+        comp[s] = id;
+        let mut size = 0;
+        while let Some(i) = stack.pop() {
+            size += 1;
+            let x = i % w;
+            let mut nb = vec![];
+            if x > 0 {
+                nb.push(i - 1)
+            }
+            if x + 1 < w {
+                nb.push(i + 1)
+            }
+            if i >= w {
+                nb.push(i - w)
+            }
+            if i + w < n {
+                nb.push(i + w)
+            }
+            for j in nb {
+                if comp[j] == usize::MAX && r.is_valid(j) && r.data[j] == r.data[s] {
+                    comp[j] = id;
+                    stack.push(j);
+                }
+            }
+        }
+        sizes.push(size);
+    }
+    let big = |i: usize| comp[i] != usize::MAX && sizes[comp[i]] >= 1024;
+    (0..n)
+        .filter(|&i| {
+            big(i) && {
+                let x = i % w;
+                let nb = [
+                    (x > 0).then(|| i - 1),
+                    (x + 1 < w).then(|| i + 1),
+                    (i >= w).then(|| i - w),
+                    (i + w < n).then(|| i + w),
+                ];
+                nb.into_iter()
+                    .flatten()
+                    .all(|j| !big(j) || comp[j] == comp[i])
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn flat_regions_decode_exactly_under_every_method() {
+    // Crater Lake's lake and Kauai's sea (a crop with coast).
+    let kauai = read_corpus("srtm3_N22W160_kauai.hgt");
+    let kauai = crop(
+        &kauai,
+        Window {
+            x: 300,
+            y: 700,
+            width: 300,
+            height: 300,
+        },
+    );
+    for (name, r) in [
+        ("crater", read_corpus("scape_crater.png")),
+        ("kauai", kauai),
+    ] {
+        let flat = flat_samples(&r);
+        assert!(flat.len() > 5000, "{name}: {} flat samples", flat.len());
+        let range = r.valid_range().unwrap();
+        for m in [
+            Method::SIBSON,
+            Method::GRID,
+            Method::HAAR,
+            Method::FIS,
+            Method::RESIDUAL,
+        ] {
+            for pct in [1.0, 10.0] {
+                let bound = pct / 100.0 * (range.1 - range.0);
+                let bytes = match vtz::encode(&r, &encode_opts(&[m], Some(ErrorBound::Abs(bound))))
+                {
+                    Ok(b) => b,
+                    // FIS cannot meet tight bounds on rough terrain at all (as before flat
+                    // regions existed): nothing to check there.
+                    Err(vtz::Error::Unmet { .. }) if m == Method::FIS => continue,
+                    Err(e) => panic!("{name} {m} {pct}%: {e}"),
+                };
+                let back = vtz::decode(&bytes).unwrap();
+                check(&r, &back, bound, &format!("{name} {m} {pct}%"));
+                let changed = flat.iter().filter(|&&i| back.data[i] != r.data[i]).count();
+                assert_eq!(changed, 0, "{name} {m} {pct}%: flat samples changed");
+                // A window and a resampled decode keep them too.
+                let win = Window {
+                    x: 10,
+                    y: 20,
+                    width: 100,
+                    height: 90,
+                };
+                let part =
+                    vtz::decode_with(&bytes, &decode_opts(|o| o.window = Some(win))).unwrap();
+                for y in 0..win.height {
+                    for x in 0..win.width {
+                        let i = (y + win.y) * r.width + x + win.x;
+                        assert_eq!(
+                            part.data[y * win.width + x].to_bits(),
+                            back.data[i].to_bits()
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn effort_out_of_range_is_a_usage_error() {
+    let d = tempfile::tempdir().unwrap();
+    for bad in ["0", "10", "x"] {
+        let o = vtz([
+            "encode",
+            &common::corpus("scape_crater.png"),
+            "-o",
+            &tmp(&d, "e.vtz"),
+            "--effort",
+            bad,
+        ]);
+        assert_eq!(o.status.code(), Some(2), "--effort {bad}");
+    }
+    let mut opts = encode_opts(&[Method::RESIDUAL], None);
+    opts.effort = Some(12);
+    let e = vtz::encode(&read_corpus("scape_crater.png"), &opts).unwrap_err();
+    assert!(matches!(e, vtz::Error::InvalidArgument { .. }), "{e}");
+}
