@@ -35,8 +35,8 @@ pub struct Args {
     /// Rasters to measure (.tif, .png, .exr, .hgt, .asc, .f32 + .json).
     #[arg(required = true, value_name = "FILE")]
     pub files: Vec<PathBuf>,
-    /// Methods to run, comma-separated: sibson, grid, fis, haar, best.
-    #[arg(long, default_value = "sibson,grid,fis,haar", value_name = "LIST")]
+    /// Methods to run, comma-separated: residual, sibson, grid, fis, haar, best.
+    #[arg(long, default_value = "residual,sibson,grid,fis,haar,best", value_name = "LIST")]
     pub methods: String,
     /// Max-error bounds, comma-separated: in % of the value range (1%) or in data units (2.5).
     #[arg(
