@@ -39,7 +39,7 @@ def sections_of(data):
         pos += length
     return secs
 
-METHOD_INDEX = {3: 0, 2: 1, 5: 2, 4: 3}  # section code → registry index (sibson, grid, haar, fis)
+METHOD_INDEX = {3: 0, 2: 1, 5: 2, 4: 3, 6: 4}  # section code → registry index (sibson, grid, haar, fis, residual)
 TYPE_CODE = {"u8": 0, "i16": 1, "u16": 2, "i32": 3, "f32": 4, "f64": 5}
 
 with tempfile.TemporaryDirectory() as tmp:
@@ -65,7 +65,8 @@ with tempfile.TemporaryDirectory() as tmp:
                 js = open(p[:-4] + ".json", "rb").read()
                 body = struct.pack("<H", len(js)) + js + body
             put("readers", f"{name}.{fmt}", bytes([pick]) + body)
-        for m, bound in (("sibson", "2%"), ("sibson", "1"), ("grid", "0"), ("grid", "1"), ("haar", "3"), ("fis", "5%")):
+        for m, bound in (("sibson", "2%"), ("sibson", "1"), ("grid", "0"), ("grid", "1"), ("haar", "3"), ("fis", "5%"),
+                         ("residual", "0"), ("residual", "1"), ("residual", "2%")):
             p = os.path.join(tmp, f"{name}_{m}_{bound.strip('%')}.vtz")
             args = ["encode", crop, "-o", p, "--method", m, "--force", "-q"]
             if bound != "0":
@@ -87,6 +88,7 @@ with tempfile.TemporaryDirectory() as tmp:
         st = TYPE_CODE[j["sample_type"]]
         secs = sections_of(data)
         mask = [s for s in secs if s[0] == 1]
+        flat = [s for s in secs if s[0] == 9]
         for kind, _flags, payload in secs:
             if kind not in METHOD_INDEX:
                 continue
@@ -96,6 +98,9 @@ with tempfile.TemporaryDirectory() as tmp:
             if mask:
                 flags |= 1
                 body = struct.pack("<H", len(mask[0][2])) + mask[0][2]
+            if flat:
+                flags |= 8
+                body += struct.pack("<H", len(flat[0][2])) + flat[0][2]
             seed = head + bytes([flags]) + struct.pack("<HHB", w - 1, h - 1, st) + body + payload
             put("sections", f"{os.path.basename(p)}.{kind}", seed)
     rng = random.Random(1)

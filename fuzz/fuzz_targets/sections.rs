@@ -1,5 +1,5 @@
 //! Each method's section decoder, reached through the method registry: the input picks a
-//! method, a raster shape, a sample type and optionally a mask section, and the rest is the
+//! method, a raster shape, a sample type and optionally a mask and a flat section, and the rest is the
 //! payload, framed in a well-formed container (checksums right), then decoded in full, as
 //! a window, and as stats and sites. Errors are fine; panics are not.
 #![no_main]
@@ -30,6 +30,15 @@ fuzz_target!(|data: &[u8]| {
         let n = (u16::from_le_bytes([rest[0], rest[1]]) as usize).min(rest.len() - 2);
         sections.push(Section {
             kind: SectionKind::MASK,
+            flags: SF_REQUIRED,
+            payload: rest[2..2 + n].to_vec(),
+        });
+        rest = &rest[2 + n..];
+    }
+    if flags & 8 != 0 && rest.len() >= 2 {
+        let n = (u16::from_le_bytes([rest[0], rest[1]]) as usize).min(rest.len() - 2);
+        sections.push(Section {
+            kind: SectionKind::FLAT,
             flags: SF_REQUIRED,
             payload: rest[2..2 + n].to_vec(),
         });

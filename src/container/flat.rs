@@ -29,6 +29,7 @@ pub fn encode(values: &[f64], w: usize, mask: Option<&[bool]>) -> Vec<u8> {
     out.put_u8(0);
     out.put_u32(count);
     out.put_u64(flat.iter().filter(|&&b| b).count() as u64);
+    out.put_u64(flat.len() as u64);
     for v in region_values {
         out.put_f64(v);
     }
@@ -51,6 +52,10 @@ pub fn decode(payload: &[u8], w: usize, n: usize, mask: Option<&[bool]>) -> Resu
     }
     let count = r.u32("region count")? as usize;
     let flat_count = r.u64("flat count")?;
+    let samples = r.u64("sample count")?;
+    if samples != n as u64 {
+        return Err(r.corrupt(format!("holds {samples} samples, the raster has {n}")));
+    }
     if flat_count > n as u64 || count as u64 > flat_count {
         return Err(r.corrupt(format!(
             "{count} regions of {flat_count} samples do not fit {n} samples"

@@ -20,6 +20,7 @@ pub fn encode(mask: &[bool], w: usize) -> Vec<u8> {
     let mut ctx = Vec::new();
     ctx.put_u8(CODING_CONTEXT);
     ctx.put_u64(invalid.iter().filter(|&&b| b).count() as u64);
+    ctx.put_u64(mask.len() as u64);
     ctx.extend_from_slice(&super::bitmap::encode(&invalid, w, |_| true));
     if ctx.len() < runs.len() { ctx } else { runs }
 }
@@ -62,6 +63,10 @@ pub fn decode(payload: &[u8], w: usize, n: usize) -> Result<Vec<bool>> {
         return Err(r.corrupt(format!("invalid count {invalid} exceeds {n} samples")));
     }
     if coding == CODING_CONTEXT {
+        let samples = r.u64("sample count")?;
+        if samples != n as u64 {
+            return Err(r.corrupt(format!("holds {samples} samples, the raster has {n}")));
+        }
         let bits = super::bitmap::decode(r.take(r.remaining(), "bitmap")?, w.max(1), n, |_| true)?;
         let seen = bits.iter().filter(|&&b| b).count() as u64;
         if seen != invalid {

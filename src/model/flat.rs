@@ -34,7 +34,7 @@ pub(crate) fn label(flat: &[bool], w: usize) -> (Vec<u32>, u32) {
             if x > 0 {
                 visit(i - 1);
             }
-            if x + 1 < w {
+            if x + 1 < w && i + 1 < n {
                 visit(i + 1);
             }
             if i >= w {

@@ -36,7 +36,11 @@ pub struct Args {
     #[arg(required = true, value_name = "FILE")]
     pub files: Vec<PathBuf>,
     /// Methods to run, comma-separated: residual, sibson, grid, fis, haar, best.
-    #[arg(long, default_value = "residual,sibson,grid,fis,haar,best", value_name = "LIST")]
+    #[arg(
+        long,
+        default_value = "residual,sibson,grid,fis,haar,best",
+        value_name = "LIST"
+    )]
     pub methods: String,
     /// Max-error bounds, comma-separated: in % of the value range (1%) or in data units (2.5).
     #[arg(

@@ -185,6 +185,10 @@ pub fn run<C: BinCoder>(
         let s = 1usize << (l - 1);
         let lvl = (l as usize - 1).min(LEVELS - 2) as u8;
         for (pass, (vert, r0, rs, c0, cs)) in passes(s).into_iter().enumerate() {
+            // Index offsets of the stencil and of the context neighbours at this step.
+            let (ws, ss) = ((w * s) as isize, s as isize);
+            let stencil_off: [isize; NF] = STENCIL[pass].map(|(dy, dx)| dy * ws + dx * ss);
+            let nb_off: [isize; 10] = CTX_NB.map(|(dx, dy)| dy * ws + dx * ss);
             let coef = if cfg.ls_levels >= l {
                 if C::ENCODES {
                     weights.push(fit(p, s, pass));
@@ -207,29 +211,54 @@ pub fn run<C: BinCoder>(
                         (q >= 0 && q < len as isize)
                             .then(|| st.rec[(i as isize + k * step as isize) as usize])
                     };
-                    let b = at(-1).expect("the point before is inside");
-                    let (a, c, d) = (at(-3), at(1), at(3));
+                    let (a, b, c, d) = if pos >= 3 * s && pos + 3 * s < len {
+                        // The whole support is inside (the same values as below).
+                        let r = |k: isize| st.rec[(i as isize + k * step as isize) as usize];
+                        (Some(r(-3)), r(-1), Some(r(1)), Some(r(3)))
+                    } else {
+                        let b = at(-1).expect("the point before is inside");
+                        (at(-3), b, at(1), at(3))
+                    };
                     let mut pred = interp1(a, b, c, d);
                     if let (Some(cf), true) = (coef, a.is_some() && d.is_some()) {
-                        if let Some(f) = features(&st.rec, None, (w, h), (y, x, s), pass, pred) {
-                            let acc: i64 = f.iter().zip(cf).map(|(f, c)| f * c as i64).sum();
+                        let acc = if y >= 3 * s && x >= 3 * s && y + 3 * s < h && x + 3 * s < w {
+                            // Every stencil point lies within ±3s: direct offsets.
+                            let mut acc = 0i64;
+                            for (o, c) in stencil_off.iter().zip(cf) {
+                                acc += (st.rec[(i as isize + o) as usize] - pred) * c as i64;
+                            }
+                            Some(acc)
+                        } else {
+                            features(&st.rec, None, (w, h), (y, x, s), pass, pred)
+                                .map(|f| f.iter().zip(cf).map(|(f, c)| f * c as i64).sum())
+                        };
+                        if let Some(acc) = acc {
                             pred += round_div(acc, 1 << ls::SHIFT);
                         }
                     }
                     let mut sum = 0i64;
                     let mut cnt = 0i64;
                     let mut sg = 0i32;
-                    for (dx, dy) in CTX_NB {
-                        let xx = x as isize + dx * s as isize;
-                        let yy = y as isize + dy * s as isize;
-                        if xx >= 0 && yy >= 0 && (xx as usize) < w && (yy as usize) < h {
-                            let j = yy as usize * w + xx as usize;
-                            if known[j] {
-                                sum += st.res[j] as i64;
-                                cnt += 1;
-                                if lvl_of[j] == lvl {
-                                    sg += st.sign[j] as i32;
-                                }
+                    let mut visit = |j: usize| {
+                        if known[j] {
+                            sum += st.res[j] as i64;
+                            cnt += 1;
+                            if lvl_of[j] == lvl {
+                                sg += st.sign[j] as i32;
+                            }
+                        }
+                    };
+                    if x >= 2 * s && y >= 2 * s && x + s < w && y + s < h {
+                        // Every neighbour is inside: no bounds checks (same visits).
+                        for o in nb_off {
+                            visit((i as isize + o) as usize);
+                        }
+                    } else {
+                        for (dx, dy) in CTX_NB {
+                            let xx = x as isize + dx * s as isize;
+                            let yy = y as isize + dy * s as isize;
+                            if xx >= 0 && yy >= 0 && (xx as usize) < w && (yy as usize) < h {
+                                visit(yy as usize * w + xx as usize);
                             }
                         }
                     }
