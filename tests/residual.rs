@@ -298,3 +298,17 @@ fn effort_out_of_range_is_a_usage_error() {
     let e = vtz::encode(&read_corpus("scape_crater.png"), &opts).unwrap_err();
     assert!(matches!(e, vtz::Error::InvalidArgument { .. }), "{e}");
 }
+
+#[test]
+fn info_stats_describe_the_residual_section() {
+    let golden = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/golden/v1_kauai_coast_flat.vtz");
+    let j = common::json(&vtz(["info", golden.to_str().unwrap(), "--stats", "--json"]));
+    let r = &j["residual"];
+    // Interpolation at 8 m on whole metres: bins of 2·8+1 lattice steps of 1 m.
+    assert_eq!(r["predictor"], 0, "{r}");
+    assert_eq!(r["bin_width"], 17, "{r}");
+    assert_eq!(r["lattice_step"], 1.0, "{r}");
+    assert!(r["levels"].as_u64().unwrap() >= 1, "{r}");
+    assert!(r["max_error"].as_f64().unwrap() <= 8.0, "{r}");
+}

@@ -1,9 +1,11 @@
 //! The residual layer as the registry sees it.
 
-use super::{decode, encode};
+use super::{decode, describe, encode};
 use crate::container::SectionKind;
 use crate::error::Result;
-use crate::methods::{DecodeJob, EncodeJob, Encoded, Identity, Representation};
+use crate::methods::{
+    DecodeJob, EncodeJob, Encoded, Identity, Method, Representation, StatValue, Stats,
+};
 
 /// Every sample predicted from decoded ones, quantized closed loop, context coded.
 pub(crate) struct Residual;
@@ -33,5 +35,31 @@ impl Representation for Residual {
     }
     fn decode_full(&self, job: &DecodeJob) -> Result<Vec<f64>> {
         decode(job.payload, job.header, job.mask, job.flat)
+    }
+    fn has_stats(&self) -> bool {
+        true
+    }
+    fn describe(&self, job: &DecodeJob) -> Result<Option<Stats>> {
+        let (predictor, levels, step, bin, bound) = describe(job.payload)?;
+        let how = if levels > 0 {
+            format!("{predictor} ({levels} levels, anchors every {})", 1u64 << levels)
+        } else {
+            predictor.to_string()
+        };
+        Ok(Some(Stats {
+            method: Method::RESIDUAL,
+            values: vec![
+                ("predictor", StatValue::Count(u64::from(levels == 0))),
+                ("levels", StatValue::Count(levels as u64)),
+                ("lattice_step", StatValue::Number(step)),
+                ("bin_width", StatValue::Count(bin)),
+                ("max_error", StatValue::Number(bound)),
+            ],
+            lines: vec![format!(
+                "residual      {how}, lattice step {}, bins of {bin} steps, max error {}",
+                crate::metrics::num(step),
+                crate::metrics::num(bound)
+            )],
+        }))
     }
 }

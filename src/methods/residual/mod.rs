@@ -299,37 +299,42 @@ fn code(p: &Plane, pred: Predictor, s: &Setup) -> Result<(Vec<u8>, Vec<i64>)> {
     Ok((out, st.rec))
 }
 
-/// Decode a residual payload. `fixed` holds the values of samples known by other means
-/// (flat regions), NaN elsewhere.
-pub(crate) fn decode(
-    payload: &[u8],
-    header: &Header,
-    mask: Option<&[bool]>,
-    fixed: Option<&[f64]>,
-) -> Result<Vec<f64>> {
-    let mut rd = ByteReader::new(payload, "residual section");
+/// The fixed fields of a residual payload, checked.
+struct Head {
+    cfg: Predictor,
+    weight_sets: usize,
+    domain: Domain,
+    bound: f64,
+    bin: u64,
+    lo: i64,
+    hi: i64,
+    coded: u64,
+}
+
+/// Read and check the fixed fields (the reader is left at the stencil weights).
+fn read_head(rd: &mut ByteReader) -> Result<Head> {
     let coding = rd.u8("coding")?;
     if coding != CODING_LATTICE {
         return Err(rd.corrupt(format!("coding {coding} is not defined")));
     }
     let pred = rd.u8("predictor")?;
     let levels = rd.u8("levels")?;
-    let nweights = rd.u8("weight sets")? as usize;
+    let weight_sets = rd.u8("weight sets")? as usize;
     let cfg = match pred {
         PRED_INTERP => {
             if !(1..=MAX_LEVELS).contains(&levels) {
                 return Err(rd.corrupt(format!("{levels} interpolation levels (1 ..= 12)")));
             }
-            if nweights % 2 != 0 || nweights > 2 * levels.min(4) as usize {
-                return Err(rd.corrupt(format!("{nweights} weight sets for {levels} levels")));
+            if weight_sets % 2 != 0 || weight_sets > 2 * levels.min(4) as usize {
+                return Err(rd.corrupt(format!("{weight_sets} weight sets for {levels} levels")));
             }
             Predictor::Interp(interp::Config {
                 levels: levels as u32,
-                ls_levels: nweights as u32 / 2,
+                ls_levels: weight_sets as u32 / 2,
             })
         }
         PRED_WEIGHTED => {
-            if levels != 0 || nweights != weighted::CLASSES {
+            if levels != 0 || weight_sets != weighted::CLASSES {
                 return Err(rd.corrupt("weighted predictor: levels must be 0 and weight sets 8"));
             }
             Predictor::Weighted
@@ -359,6 +364,37 @@ pub(crate) fn decode(
         return Err(rd.corrupt(format!("range {lo} ..= {hi} is outside ±2^38")));
     }
     let coded = rd.u64("coded count")?;
+    Ok(Head {
+        cfg,
+        weight_sets,
+        domain: Domain { mul, div, offset },
+        bound,
+        bin,
+        lo,
+        hi,
+        coded,
+    })
+}
+
+/// Decode a residual payload. `fixed` holds the values of samples known by other means
+/// (flat regions), NaN elsewhere.
+pub(crate) fn decode(
+    payload: &[u8],
+    header: &Header,
+    mask: Option<&[bool]>,
+    fixed: Option<&[f64]>,
+) -> Result<Vec<f64>> {
+    let mut rd = ByteReader::new(payload, "residual section");
+    let Head {
+        cfg,
+        weight_sets: nweights,
+        domain,
+        bound: _,
+        bin,
+        lo,
+        hi,
+        coded,
+    } = read_head(&mut rd)?;
     let n = header.samples() as usize;
     let (w, h) = (header.width as usize, header.height as usize);
     if fixed.is_some_and(|f| f.len() != n) || mask.is_some_and(|m| m.len() != n) {
@@ -378,7 +414,6 @@ pub(crate) fn decode(
         flat_w.push(rd.u16("stencil weight")? as i16);
     }
     let stream = rd.take(rd.remaining(), "bins")?;
-    let domain = Domain { mul, div, offset };
     let mut values = vec![0i64; n];
     if let Some(f) = fixed {
         for (i, &v) in f.iter().enumerate() {
@@ -426,4 +461,16 @@ pub(crate) fn decode(
             _ => finish_value(domain.raw(st.rec[i]), header),
         })
         .collect())
+}
+
+/// What `vtz info --stats` shows of a residual payload: the predictor, its levels, the
+/// lattice step and the bin width.
+pub(crate) fn describe(payload: &[u8]) -> Result<(&'static str, u32, f64, u64, f64)> {
+    let mut rd = ByteReader::new(payload, "residual section");
+    let h = read_head(&mut rd)?;
+    let (name, levels) = match h.cfg {
+        Predictor::Interp(c) => ("interpolation", c.levels),
+        Predictor::Weighted => ("weighted", 0),
+    };
+    Ok((name, levels, h.domain.unit(), h.bin, h.bound))
 }
