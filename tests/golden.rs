@@ -102,6 +102,12 @@ fn cases() -> Vec<(&'static str, EncodeOptions, f64, Option<&'static str>)> {
             None,
         ),
         (
+            "v1_kauai_crop_residual_exceptions",
+            encode_opts(&[Method::RESIDUAL], None),
+            0.0,
+            None,
+        ),
+        (
             "v1_kauai_coast_flat",
             encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(8.0))),
             8.0,
@@ -114,9 +120,30 @@ fn cases() -> Vec<(&'static str, EncodeOptions, f64, Option<&'static str>)> {
 fn source_of(name: &str) -> vtz::Raster {
     if name.contains("coast") {
         coast()
+    } else if name.contains("exceptions") {
+        exceptions()
     } else {
         source()
     }
+}
+
+/// The source of the exceptions golden file: the crop as float32, every 37th valid sample
+/// raised by 0.25 m (whole metres but for a few: voids filled by interpolation look so).
+fn exceptions() -> vtz::Raster {
+    let s = source();
+    let mut k = 0;
+    let data: Vec<f64> = (0..s.len())
+        .map(|i| {
+            if !s.is_valid(i) {
+                return f64::NAN;
+            }
+            k += 1;
+            s.data[i] + if k % 37 == 0 { 0.25 } else { 0.0 }
+        })
+        .collect();
+    let mut r = vtz::Raster::from_values(64, 48, data, s.nodata, vtz::SampleType::F32).unwrap();
+    r.georef = s.georef;
+    r
 }
 
 fn as_f32_bytes(r: &vtz::Raster) -> Vec<u8> {
@@ -148,7 +175,12 @@ fn golden_files_decode_to_their_expected_samples() {
         let r = vtz::decode(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!((r.width, r.height), (64, 48), "{name}");
         assert_eq!(r.nodata, Some(-32768.0), "{name}");
-        assert_eq!(r.sample_type, vtz::SampleType::I16, "{name}");
+        let st = if name.contains("exceptions") {
+            vtz::SampleType::F32
+        } else {
+            vtz::SampleType::I16
+        };
+        assert_eq!(r.sample_type, st, "{name}");
         let g = r.georef.as_ref().expect("georef");
         assert_eq!(g.epsg, Some(4326));
         assert_eq!(r.gdal_metadata.as_deref(), gdal_metadata, "{name}");
@@ -237,6 +269,13 @@ fn the_residual_and_flat_golden_files_cover_both_predictors_and_every_new_coding
     }
     predictors.sort();
     predictors.dedup();
+    // The exceptions file stores every 37th valid sample verbatim (offset 4: their count).
+    let bytes = read("v1_kauai_crop_residual_exceptions");
+    let info = vtz::info(&bytes, vtz::Limits::default()).unwrap();
+    let p = info.sections[info.primary].offset as usize;
+    let x = u32::from_le_bytes(bytes[p + 4..p + 8].try_into().unwrap());
+    let valid = exceptions().valid_count() as u32;
+    assert_eq!(x, valid / 37, "exceptions");
     assert_eq!(
         predictors,
         [0, 1],

@@ -303,7 +303,12 @@ fn effort_out_of_range_is_a_usage_error() {
 fn info_stats_describe_the_residual_section() {
     let golden = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/golden/v1_kauai_coast_flat.vtz");
-    let j = common::json(&vtz(["info", golden.to_str().unwrap(), "--stats", "--json"]));
+    let j = common::json(&vtz([
+        "info",
+        golden.to_str().unwrap(),
+        "--stats",
+        "--json",
+    ]));
     let r = &j["residual"];
     // Interpolation at 8 m on whole metres: bins of 2·8+1 lattice steps of 1 m.
     assert_eq!(r["predictor"], 0, "{r}");
@@ -311,4 +316,36 @@ fn info_stats_describe_the_residual_section() {
     assert_eq!(r["lattice_step"], 1.0, "{r}");
     assert!(r["levels"].as_u64().unwrap() >= 1, "{r}");
     assert!(r["max_error"].as_f64().unwrap() <= 8.0, "{r}");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+    #[test]
+    fn whole_metres_with_a_few_fractions_are_lossless_with_exceptions(
+        w in 8usize..60,
+        h in 8usize..60,
+        seed in any::<u64>(),
+        every in 20usize..200,
+        st in prop::sample::select(vec![SampleType::F32, SampleType::F64]),
+    ) {
+        let t = terrain(Kind::Fbm, w, h, seed, true, SampleType::I16);
+        let mut k = 0;
+        let data: Vec<f64> = (0..t.len())
+            .map(|i| {
+                if !t.is_valid(i) {
+                    return f64::NAN;
+                }
+                k += 1;
+                let v = t.data[i] + if k % every == 0 { 0.3 + (k % 7) as f64 * 0.01 } else { 0.0 };
+                if st == SampleType::F32 { v as f32 as f64 } else { v }
+            })
+            .collect();
+        let r = Raster::from_values(w, h, data, Some(common::NODATA), st).unwrap();
+        let (bytes, back) = residual(&r, None, 5);
+        check(&r, &back, 0.0, &format!("{w}x{h} every {every} {st:?}"));
+        let info = vtz::info(&bytes, Default::default()).unwrap();
+        let p = info.sections[info.primary].offset as usize;
+        let x = u32::from_le_bytes(bytes[p + 4..p + 8].try_into().unwrap()) as usize;
+        prop_assert_eq!(x, r.valid_count() / every, "exceptions stored");
+    }
 }

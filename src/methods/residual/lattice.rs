@@ -39,9 +39,16 @@ impl Domain {
     }
 }
 
-/// The indices of `r`'s valid samples on `d`, if every one is exactly on it (0 elsewhere).
+/// The indices of `r`'s valid samples on `d` (0 elsewhere), if every one is exactly on it
+/// but at most `misses` (the exceptions, whose index is the nearest one).
 fn exact(r: &Raster, d: Domain) -> Option<Vec<i64>> {
+    near(r, d, 0).map(|(k, _)| k)
+}
+
+/// [`exact`] allowing up to `misses` samples off the lattice: their indices (sorted).
+fn near(r: &Raster, d: Domain, misses: usize) -> Option<(Vec<i64>, Vec<usize>)> {
     let mut out = vec![0i64; r.len()];
+    let mut off = Vec::new();
     for (i, &v) in r.data.iter().enumerate() {
         if !r.is_valid(i) {
             continue;
@@ -52,17 +59,61 @@ fn exact(r: &Raster, d: Domain) -> Option<Vec<i64>> {
         }
         let k = k as i64;
         if finish(d.raw(k), r.sample_type, r.mapping) != v {
-            return None;
+            if off.len() == misses {
+                return None;
+            }
+            off.push(i);
         }
         out[i] = k;
     }
-    Some(out)
+    Some((out, off))
 }
 
-/// The data's own lattice: integer codes (integer types, or floats holding whole numbers),
-/// a decimal step coarser than float spacing, or the coarsest power of two dividing every
-/// value. `None` when no lattice keeps indices within [`MAX_UNITS`].
-pub fn detect(r: &Raster) -> Option<(Domain, Vec<i64>)> {
+/// Float data almost on whole numbers or a decimal step (DEMs whose voids were filled by
+/// interpolation): at most 1/16 of the valid samples off it (each costs ~6 bytes stored verbatim,
+/// against the many bits per sample a power-of-two step finer than the data would cost). Returns the lattice, the
+/// indices (the nearest for the exceptions) and the exceptions, which a lossless encoder
+/// stores verbatim.
+pub fn with_exceptions(r: &Raster) -> Option<(Domain, Vec<i64>, Vec<usize>)> {
+    if r.sample_type.is_integer() {
+        return None;
+    }
+    let misses = r.valid_count() / 16;
+    if misses == 0 {
+        return None;
+    }
+    let (lo, hi) = r.valid_range()?;
+    let amax = lo.abs().max(hi.abs());
+    for digits in 0..=4 {
+        let div = 10f64.powi(digits);
+        if digits > 0 && 1.0 / div < 2.0 * float_spacing(r) * amax {
+            break;
+        }
+        let d = Domain {
+            mul: 1.0,
+            div,
+            offset: 0.0,
+        };
+        if let Some((k, off)) = near(r, d, misses) {
+            return Some((d, k, off));
+        }
+    }
+    None
+}
+
+/// The relative spacing of the sample type's floats.
+fn float_spacing(r: &Raster) -> f64 {
+    if r.sample_type == SampleType::F32 {
+        2f64.powi(-23)
+    } else {
+        2f64.powi(-52)
+    }
+}
+
+/// The data's own lattice, exactly: the source's codes (integer types), whole numbers, or a
+/// decimal step coarser than float spacing. (The encoder's other choices, in order:
+/// [`with_exceptions`] when lossless, [`pow2`], then [`approximate`] when lossy.)
+pub fn stepped(r: &Raster) -> Option<(Domain, Vec<i64>)> {
     let m = r.mapping;
     if r.sample_type.is_integer() {
         let d = Domain {
@@ -82,11 +133,7 @@ pub fn detect(r: &Raster) -> Option<(Domain, Vec<i64>)> {
     }
     let (lo, hi) = r.valid_range()?;
     let amax = lo.abs().max(hi.abs());
-    let eps = if r.sample_type == SampleType::F32 {
-        2f64.powi(-23)
-    } else {
-        2f64.powi(-52)
-    };
+    let eps = float_spacing(r);
     for digits in 1..=4 {
         let div = 10f64.powi(digits);
         // A decimal step finer than twice the float spacing is no lattice: every value
@@ -103,7 +150,11 @@ pub fn detect(r: &Raster) -> Option<(Domain, Vec<i64>)> {
             return Some((d, k));
         }
     }
-    // The coarsest power of two dividing every valid value.
+    None
+}
+
+/// The coarsest power of two dividing every valid value, when the indices fit.
+pub fn pow2(r: &Raster) -> Option<(Domain, Vec<i64>)> {
     let mut e_min = i32::MAX;
     for (i, &v) in r.data.iter().enumerate() {
         if r.is_valid(i) && v != 0.0 {

@@ -34,6 +34,8 @@ const FIXED_LEN: usize = 72;
 const MAX_LEVELS: u8 = 12;
 /// Interpolation levels with a least-squares correction, finest first.
 const LS_LEVELS: u32 = 3;
+/// What the encoder reckons one exception costs, in bits (a gap and a float).
+const EXCEPTION_BITS: f64 = 48.0;
 /// Sub-lattice refinements the encoder considers (bins of (2·⌊d·E/q⌋+1)/d steps).
 const MAX_SUBDIVISION: i64 = 16;
 
@@ -55,6 +57,8 @@ struct Setup {
     lo: i64,
     hi: i64,
     bin: i64,
+    /// Samples off the lattice (lossless only), stored verbatim after the stencil weights.
+    exceptions: Vec<usize>,
 }
 
 /// The kinds of every sample: fixed (a value in `fixed`, known to the decoder by other
@@ -102,12 +106,12 @@ pub(crate) fn encode(
     let kinds = kinds(r.len(), r.mask.as_deref(), fixed);
     let (w, h) = (r.width, r.height);
     let levels = levels_for(w, h);
-    let preds: Vec<Predictor> = {
+    let preds = {
         let interp = Predictor::Interp(interp::Config {
             levels,
             ls_levels: LS_LEVELS.min(levels),
         });
-        interp_or_weighted(interp, e, effort)
+        move |bin: i64| interp_or_weighted(interp, bin, effort)
     };
     // Lossy coding may need a safety margin for the final rounding to the sample type;
     // try without first, and the encoder checks the bound on the decoder's values.
@@ -127,7 +131,7 @@ pub(crate) fn encode(
             }
         }
         let mut best: Option<Vec<u8>> = None;
-        for &pred in &preds {
+        for pred in preds(setup.bin) {
             let p = Plane {
                 width: w,
                 height: h,
@@ -137,11 +141,18 @@ pub(crate) fn encode(
                 hi: setup.hi,
                 bin: setup.bin,
             };
-            let (payload, rec) = code(&p, pred, &setup)?;
+            let (payload, rec) = code(&p, pred, &setup, &exceptions_bytes(r, &setup.exceptions))?;
             let mut errs = Errors::default();
+            let mut next_exc = setup.exceptions.iter().peekable();
             for (i, &k) in rec.iter().enumerate() {
                 if r.is_valid(i) {
-                    errs.add(finish_value(setup.domain.raw(k), header), r.data[i]);
+                    // An exception decodes to its stored value, the others to the lattice's.
+                    let v = if next_exc.next_if_eq(&&i).is_some() {
+                        finish_value(r.data[i], header)
+                    } else {
+                        finish_value(setup.domain.raw(k), header)
+                    };
+                    errs.add(v, r.data[i]);
                 }
             }
             if errs.max > e {
@@ -175,11 +186,12 @@ pub(crate) fn encode(
 }
 
 /// Which predictors to try: both from effort 3; below, multilevel interpolation where bins
-/// are wide (it wins from about a bin of 3 lattice steps) and the weighted scan otherwise.
-fn interp_or_weighted(interp: Predictor, e: f64, effort: u8) -> Vec<Predictor> {
+/// are wide (it wins from about a bin of 3 lattice steps) and the weighted scan where the
+/// coding is lossless on the lattice (bins of 1).
+fn interp_or_weighted(interp: Predictor, bin: i64, effort: u8) -> Vec<Predictor> {
     if effort >= 3 {
         vec![interp, Predictor::Weighted]
-    } else if e == 0.0 {
+    } else if bin == 1 {
         vec![Predictor::Weighted]
     } else {
         vec![interp]
@@ -189,7 +201,31 @@ fn interp_or_weighted(interp: Predictor, e: f64, effort: u8) -> Vec<Predictor> {
 /// The lattice, units and bin width for bound `e`; `None` when there is nothing to try.
 fn setup(r: &Raster, e: f64, margin: bool, effort: u8) -> Result<Option<Setup>> {
     let float_out = matches!(r.sample_type, SampleType::F32 | SampleType::F64);
-    let (domain, values, exact) = match lattice::detect(r) {
+    // The data's step; else, when the bound makes it lossless on it, the step with the
+    // few samples off it stored verbatim; else a power-of-two step; else (lossy) an
+    // approximate one.
+    let mut exceptions = Vec::new();
+    let lossless_on = |d: &Domain| e < d.unit() / 2.0;
+    let stepped = lattice::stepped(r);
+    // A coarser step with exceptions beats a finer exact one (or a power of two) when the
+    // exceptions (~48 bits each) cost less than the finer step's extra bits per sample.
+    let coarser = lattice::with_exceptions(r).filter(|(d, _, x)| {
+        lossless_on(d)
+            && stepped.as_ref().is_none_or(|(s, _)| {
+                d.unit() > s.unit()
+                    && (x.len() as f64) * EXCEPTION_BITS
+                        < r.valid_count() as f64 * (d.unit() / s.unit()).log2()
+            })
+    });
+    let found = match (stepped, coarser) {
+        (_, Some((d, k, x))) => {
+            exceptions = x;
+            Some((d, k))
+        }
+        (Some(x), None) => Some(x),
+        (None, None) => lattice::pow2(r),
+    };
+    let (domain, values, exact) = match found {
         Some((d, k)) => (d, k, true),
         None if e > 0.0 => match lattice::approximate(r, e) {
             Some((d, k)) => (d, k, false),
@@ -252,12 +288,13 @@ fn setup(r: &Raster, e: f64, margin: bool, effort: u8) -> Result<Option<Setup>> 
         lo,
         hi,
         bin,
+        exceptions,
     }))
 }
 
 /// Code the plane with one predictor: the payload (max error still 0) and the
 /// reconstruction in units.
-fn code(p: &Plane, pred: Predictor, s: &Setup) -> Result<(Vec<u8>, Vec<i64>)> {
+fn code(p: &Plane, pred: Predictor, s: &Setup, exceptions: &[u8]) -> Result<(Vec<u8>, Vec<i64>)> {
     let mut c = BinEncoder {
         m: Models::new(),
         enc: Encoder::with_capacity(p.kinds.len() / 4),
@@ -282,7 +319,7 @@ fn code(p: &Plane, pred: Predictor, s: &Setup) -> Result<(Vec<u8>, Vec<i64>)> {
     out.put_u8(code);
     out.put_u8(levels);
     out.put_u8(weights.0 as u8);
-    out.put_u32(0);
+    out.put_u32(s.exceptions.len() as u32);
     out.put_f64(s.domain.mul);
     out.put_f64(s.domain.div);
     out.put_f64(s.domain.offset);
@@ -295,6 +332,7 @@ fn code(p: &Plane, pred: Predictor, s: &Setup) -> Result<(Vec<u8>, Vec<i64>)> {
     for w in &weights.1 {
         out.extend_from_slice(&w.to_le_bytes());
     }
+    out.extend_from_slice(exceptions);
     out.extend_from_slice(&c.enc.finish());
     Ok((out, st.rec))
 }
@@ -309,6 +347,7 @@ struct Head {
     lo: i64,
     hi: i64,
     coded: u64,
+    exceptions: u32,
 }
 
 /// Read and check the fixed fields (the reader is left at the stencil weights).
@@ -341,9 +380,7 @@ fn read_head(rd: &mut ByteReader) -> Result<Head> {
         }
         _ => return Err(rd.corrupt(format!("predictor {pred} is not defined"))),
     };
-    if rd.u32("reserved")? != 0 {
-        return Err(rd.corrupt("reserved field is not zero"));
-    }
+    let exceptions = rd.u32("exception count")?;
     let mul = rd.finite_f64("mul")?;
     let div = rd.finite_f64("div")?;
     let offset = rd.finite_f64("offset")?;
@@ -373,7 +410,42 @@ fn read_head(rd: &mut ByteReader) -> Result<Head> {
         lo,
         hi,
         coded,
+        exceptions,
     })
+}
+
+/// The exceptions as stored: per sample, in sample order, the varint gap from the previous
+/// one (the index itself for the first; index − previous − 1 after) and its value's bits
+/// (f32 for f32 data, f64 otherwise), little-endian.
+fn exceptions_bytes(r: &Raster, idx: &[usize]) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut next = 0usize;
+    for &i in idx {
+        crate::entropy::varint::put_u64(&mut out, (i - next) as u64);
+        next = i + 1;
+        if r.sample_type == SampleType::F32 {
+            out.extend_from_slice(&(r.data[i] as f32).to_le_bytes());
+        } else {
+            out.put_f64(r.data[i]);
+        }
+    }
+    out
+}
+
+/// A varint (LEB128, at most 10 bytes).
+fn read_varint(rd: &mut ByteReader) -> Result<u64> {
+    let mut v = 0u64;
+    for k in 0..10 {
+        let b = rd.u8("exception gap")?;
+        if k == 9 && b > 1 {
+            break;
+        }
+        v |= ((b & 0x7f) as u64) << (7 * k);
+        if b & 0x80 == 0 {
+            return Ok(v);
+        }
+    }
+    Err(rd.corrupt("an exception gap is not a varint"))
 }
 
 /// Decode a residual payload. `fixed` holds the values of samples known by other means
@@ -394,6 +466,7 @@ pub(crate) fn decode(
         lo,
         hi,
         coded,
+        exceptions,
     } = read_head(&mut rd)?;
     let n = header.samples() as usize;
     let (w, h) = (header.width as usize, header.height as usize);
@@ -412,6 +485,27 @@ pub(crate) fn decode(
     let mut flat_w = Vec::with_capacity(nweights * nf);
     for _ in 0..nweights * nf {
         flat_w.push(rd.u16("stencil weight")? as i16);
+    }
+    // Exceptions: coded samples whose value is stored verbatim (only float data has them).
+    if exceptions as u64 > coded
+        || (exceptions > 0 && !matches!(header.sample_type, SampleType::F32 | SampleType::F64))
+    {
+        return Err(rd.corrupt(format!("{exceptions} exceptions do not fit this raster")));
+    }
+    let mut exc: Vec<(usize, f64)> = Vec::new();
+    let mut next = 0u64;
+    for _ in 0..exceptions {
+        let i = next.saturating_add(read_varint(&mut rd)?);
+        let v = if header.sample_type == SampleType::F32 {
+            f32::from_bits(rd.u32("exception value")?) as f64
+        } else {
+            rd.f64("exception value")?
+        };
+        if i >= n as u64 || kinds[i as usize] != CODED || !v.is_finite() {
+            return Err(rd.corrupt(format!("exception at sample {i} is not a coded sample with a finite value")));
+        }
+        exc.push((i as usize, v));
+        next = i + 1;
     }
     let stream = rd.take(rd.remaining(), "bins")?;
     let mut values = vec![0i64; n];
@@ -454,13 +548,17 @@ pub(crate) fn decode(
     };
     c.dec.finish()?;
     let fill = header.nodata.unwrap_or(f64::NAN);
-    Ok((0..n)
+    let mut out: Vec<f64> = (0..n)
         .map(|i| match kinds[i] {
             SKIPPED => fill,
             FIXED => fixed.map_or(fill, |f| f[i]),
             _ => finish_value(domain.raw(st.rec[i]), header),
         })
-        .collect())
+        .collect();
+    for (i, v) in exc {
+        out[i] = v;
+    }
+    Ok(out)
 }
 
 /// What `vtz info --stats` shows of a residual payload: the predictor, its levels, the
