@@ -108,6 +108,13 @@ fn cases() -> Vec<(&'static str, EncodeOptions, f64, Option<&'static str>)> {
             None,
         ),
         (
+            // Wide bins: the encoder narrows them on coarse levels (coding 1).
+            "v1_kauai_crop_residual_tight",
+            encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(60.0))),
+            60.0,
+            None,
+        ),
+        (
             "v1_kauai_coast_flat",
             encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(8.0))),
             8.0,
@@ -269,6 +276,11 @@ fn the_residual_and_flat_golden_files_cover_both_predictors_and_every_new_coding
     }
     predictors.sort();
     predictors.dedup();
+    // The tight file narrows coarse-level bins (coding 1).
+    let bytes = read("v1_kauai_crop_residual_tight");
+    let info = vtz::info(&bytes, vtz::Limits::default()).unwrap();
+    let p = info.sections[info.primary].offset as usize;
+    assert_eq!((bytes[p], bytes[p + 1]), (1, 0), "coding 1, interpolation");
     // The exceptions file stores every 37th valid sample verbatim (offset 4: their count).
     let bytes = read("v1_kauai_crop_residual_exceptions");
     let info = vtz::info(&bytes, vtz::Limits::default()).unwrap();

@@ -38,6 +38,21 @@ pub struct Config {
     pub levels: u32,
     /// Levels (finest first) with a least-squares correction (0..=levels, ≤ 4).
     pub ls_levels: u32,
+    /// Narrower bins on coarse levels (SZ3's α = 1.25, β = 2): level l's bins are
+    /// [`level_bin`] of the plane's.
+    pub tighten: bool,
+}
+
+/// The bin width on level l (anchors: levels + 1) with tightening: the largest odd width
+/// ≤ W / min(1.25^(l−1), 2), at least 1, in exact integer arithmetic (the factors 1, 5/4,
+/// 25/16, 125/64, then 2).
+pub fn level_bin(w: i64, l: u32) -> i64 {
+    const NUM: [i64; 4] = [1, 5, 25, 125];
+    const DEN: [i64; 4] = [1, 4, 16, 64];
+    let k = (l.max(1) - 1) as usize;
+    let b = if k < 4 { w * DEN[k] / NUM[k] } else { w / 2 };
+    let b = if b % 2 == 0 { b - 1 } else { b };
+    b.max(1)
 }
 
 /// 1-D interpolation at the middle of `b` and `c` from the support −3s, −s, +s, +3s.
@@ -130,8 +145,9 @@ pub fn run<C: BinCoder>(
     let mut lvl_of = vec![0u8; w * h];
     let big = 1usize << cfg.levels;
     let mid = p.lo + (p.hi - p.lo) / 2;
-    let bin = p.bin;
+    let bin_of = |l: u32| if cfg.tighten { level_bin(p.bin, l) } else { p.bin };
     // 1. The anchor grid, MED on the subsampled grid.
+    let bin = bin_of(cfg.levels + 1);
     for y in (0..h).step_by(big) {
         for x in (0..w).step_by(big) {
             let i = y * w + x;
@@ -163,8 +179,9 @@ pub fn run<C: BinCoder>(
             }
             let act = (a - c).abs() + (b - c).abs() + (d - b).abs() + er;
             let err = er / cnt.max(1);
-            st.code(
+            st.code_with(
                 p,
+                bin,
                 i,
                 pred,
                 || Ctx {
@@ -184,6 +201,7 @@ pub fn run<C: BinCoder>(
     for l in (1..=cfg.levels).rev() {
         let s = 1usize << (l - 1);
         let lvl = (l as usize - 1).min(LEVELS - 2) as u8;
+        let bin = bin_of(l);
         for (pass, (vert, r0, rs, c0, cs)) in passes(s).into_iter().enumerate() {
             // Index offsets of the stencil and of the context neighbours at this step.
             let (ws, ss) = ((w * s) as isize, s as isize);
@@ -268,8 +286,9 @@ pub fn run<C: BinCoder>(
                         (_, Some(c), _) => (b - c).abs() / 2,
                         _ => 0,
                     };
-                    st.code(
+                    st.code_with(
                         p,
+                        bin,
                         i,
                         pred,
                         || Ctx {

@@ -58,16 +58,30 @@ impl State {
         ctx: impl FnOnce() -> Ctx,
         coder: &mut C,
     ) -> Result<i64> {
+        self.code_with(p, p.bin, i, pred, ctx, coder)
+    }
+
+    /// [`State::code`] with bins of width `bin` (odd, ≥ 1) instead of the plane's.
+    #[inline]
+    pub fn code_with<C: BinCoder>(
+        &mut self,
+        p: &Plane,
+        bin: i64,
+        i: usize,
+        pred: i64,
+        ctx: impl FnOnce() -> Ctx,
+        coder: &mut C,
+    ) -> Result<i64> {
         let pred = pred.clamp(p.lo, p.hi);
         let (r, b) = match p.kinds[i] {
             CODED => {
                 let q = if C::ENCODES {
-                    quantize(p.values[i] - pred, p.bin)
+                    quantize(p.values[i] - pred, bin)
                 } else {
                     0
                 };
                 let b = coder.bin(&ctx(), q)?;
-                ((pred + b * p.bin).clamp(p.lo, p.hi), b)
+                ((pred + b * bin).clamp(p.lo, p.hi), b)
             }
             FIXED => (p.values[i].clamp(p.lo, p.hi), 0),
             _ => (pred, 0),
