@@ -9,20 +9,17 @@
 #[path = "../tests/common/mod.rs"]
 mod common;
 
-use common::{decode_opts, encode_opts, read_corpus, shared_corpus};
+use common::{decode_opts, encode_opts, read_corpus, read_shared};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::time::Duration;
 use vtz::{ErrorBound, Method};
 
 fn rasters() -> Vec<(String, vtz::Raster)> {
     let mut v = vec![("scape_crater".to_string(), read_corpus("scape_crater.png"))];
-    let wm = shared_corpus().map(|d| d.join("srtm3_N44W072_white_mountains.f32"));
-    if let Some(wm) = wm.filter(|p| p.exists()) {
-        v.push((
-            "white_mountains_1201".to_string(),
-            vtz::read_path(&wm, &Default::default()).unwrap(),
-        ));
-    }
+    v.extend(
+        read_shared("srtm3_N44W072_white_mountains.f32")
+            .map(|r| ("white_mountains_1201".to_string(), r)),
+    );
     v
 }
 

@@ -8,7 +8,7 @@
 #[path = "../tests/common/mod.rs"]
 mod common;
 
-use common::{encode_opts, read_corpus, shared_corpus};
+use common::{encode_opts, read_corpus, read_shared};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::time::Duration;
 use vtz::{ErrorBound, Method};
@@ -18,13 +18,10 @@ fn rasters() -> Vec<(String, vtz::Raster)> {
         "istria_2400".to_string(),
         read_corpus("srtm1_N45E013_istria_crop2400.png"),
     )];
-    let wm = shared_corpus().map(|d| d.join("srtm3_N44W072_white_mountains.f32"));
-    if let Some(wm) = wm.filter(|p| p.exists()) {
-        v.push((
-            "white_mountains_1201".to_string(),
-            vtz::read_path(&wm, &Default::default()).unwrap(),
-        ));
-    }
+    v.extend(
+        read_shared("srtm3_N44W072_white_mountains.f32")
+            .map(|r| ("white_mountains_1201".to_string(), r)),
+    );
     v
 }
 

@@ -197,6 +197,17 @@ pub fn shared_corpus() -> Option<PathBuf> {
     }
 }
 
+/// `name` of the shared corpus (`../shared/corpus/NAME`), when it is there (the benches'
+/// larger rasters); `None` with a message otherwise.
+pub fn read_shared(name: &str) -> Option<Raster> {
+    let p = shared_corpus()?.join(name);
+    if !p.exists() {
+        skip(&format!("{} is absent", p.display()));
+        return None;
+    }
+    Some(vtz::read_path(&p, &Default::default()).unwrap())
+}
+
 /// The path of `name` in a temporary directory.
 pub fn tmp(dir: &tempfile::TempDir, name: &str) -> String {
     dir.path().join(name).to_string_lossy().into_owned()
