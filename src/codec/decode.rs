@@ -2,6 +2,7 @@
 //! against the limits, and run the section's method from the registry.
 
 use super::options::{DecodeOptions, Scale, SectionChoice};
+use crate::container::flat::Flat;
 use crate::container::{ContainerReader, Header, Limits, SectionKind};
 use crate::error::{Error, Result};
 use crate::methods::{self, DecodeJob, Representation};
@@ -59,7 +60,11 @@ pub(crate) fn decode_reader<R: Read + Seek>(
     let header = rd.header().clone();
     let mask = rd.read_mask()?;
     let flat = rd.read_flat(mask.as_deref())?;
-    let method_mask = method_mask(mask.as_deref(), flat.as_deref());
+    let method_mask = method_mask(
+        mask.as_deref(),
+        flat.as_ref(),
+        rd.header().samples() as usize,
+    );
     let mut gdal_metadata = rd.read_gdal_metadata()?;
     let idx = section_index(rd, opts.section)?;
     let entry = rd
@@ -139,7 +144,7 @@ pub(crate) fn decode_reader<R: Read + Seek>(
         sites: opts.sites,
         levels: opts.levels,
         threads: opts.threads,
-        flat: flat.as_deref(),
+        flat: flat.as_ref(),
         base: None,
         progress,
     };
@@ -149,14 +154,7 @@ pub(crate) fn decode_reader<R: Read + Seek>(
     let mut data = method.decode(&job)?;
     if let Some(f) = &flat {
         // Flat regions hold their exact value whatever the method made of them.
-        for y in 0..win.height {
-            for x in 0..win.width {
-                let v = f[(win.y + y) * w + win.x + x];
-                if !v.is_nan() {
-                    data[y * win.width + x] = v;
-                }
-            }
-        }
+        f.overwrite(&mut data, w, (win.x, win.y, win.width, win.height));
     }
     let mut r = Raster {
         width: win.width,
@@ -175,14 +173,17 @@ pub(crate) fn decode_reader<R: Read + Seek>(
 
 /// The mask a method decodes with: the file's, with the flat regions' samples also
 /// invalid (the method need not represent them); `None` without flat regions.
-pub(crate) fn method_mask(mask: Option<&[bool]>, flat: Option<&[f64]>) -> Option<Vec<bool>> {
+pub(crate) fn method_mask(
+    mask: Option<&[bool]>,
+    flat: Option<&Flat>,
+    n: usize,
+) -> Option<Vec<bool>> {
     let f = flat?;
-    Some(
-        f.iter()
-            .enumerate()
-            .map(|(i, v)| v.is_nan() && mask.is_none_or(|m| m[i]))
-            .collect(),
-    )
+    let mut m = mask.map_or_else(|| vec![true; n], <[bool]>::to_vec);
+    for (s, l, _) in f.runs() {
+        m[s..s + l].fill(false);
+    }
+    Some(m)
 }
 
 /// The size of a `w × h` grid resampled by `s` (sample (i, j) sits at source position
@@ -211,8 +212,7 @@ fn decode_scaled(
         for y in 0..oh {
             let sy = near(y, h);
             for x in 0..ow {
-                let v = f[sy * w + near(x, w)];
-                if !v.is_nan() {
+                if let Some(v) = f.value_at(sy * w + near(x, w)) {
                     data[y * ow + x] = v;
                     mask[y * ow + x] = true;
                 }

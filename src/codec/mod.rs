@@ -429,7 +429,7 @@ impl<R: Read + Seek> Decoder<R> {
         }
         let mask = self.mask.as_ref().and_then(|m| m.as_deref());
         let flat = self.rd.read_flat(mask)?;
-        let method_mask = decode::method_mask(mask, flat.as_deref());
+        let method_mask = decode::method_mask(mask, flat.as_ref(), header.samples() as usize);
         let payload = self.rd.read_section(i)?;
         let job = DecodeJob {
             payload: &payload,
@@ -439,7 +439,7 @@ impl<R: Read + Seek> Decoder<R> {
             sites: None,
             levels: None,
             threads: 1,
-            flat: flat.as_deref(),
+            flat: flat.as_ref(),
             base: None,
             progress: &|_| {},
         };

@@ -51,7 +51,7 @@ pub(crate) fn verify<R: Read + Seek>(rd: &mut ContainerReader<R>) -> Result<Veri
     // The flat regions: decoded (and checked against the mask) here, then written over
     // every surface as a decoder does.
     let flat = rd.read_flat(mask.as_deref())?;
-    let method_mask = super::decode::method_mask(mask.as_deref(), flat.as_deref());
+    let method_mask = super::decode::method_mask(mask.as_deref(), flat.as_ref(), n);
     let fill = header.nodata.unwrap_or(f64::NAN);
     let mut surfaces: Vec<(usize, String, f64, Vec<f64>)> = Vec::new();
     let mut unknown = Vec::new();
@@ -85,22 +85,19 @@ pub(crate) fn verify<R: Read + Seek>(rd: &mut ContainerReader<R>) -> Result<Veri
             sites: None,
             levels: None,
             threads: 0,
-            flat: flat.as_deref(),
+            flat: flat.as_ref(),
             base: None,
             progress: &|_| {},
         };
         let mut data = m
             .decode_full(&job)
             .map_err(|err| err.context(format!("section {i}")))?;
-        if let Some(f) = &flat {
-            for (d, &v) in data.iter_mut().zip(f) {
-                if !v.is_nan() {
-                    *d = v;
-                }
-            }
-        }
         if data.len() != n {
             return Err(at(format!("decodes to {} samples, not {n}", data.len())));
+        }
+        if let Some(f) = &flat {
+            let (w, h) = (header.width as usize, header.height as usize);
+            f.overwrite(&mut data, w, (0, 0, w, h));
         }
         m.describe(&job)?;
         let off = m.id().bound_at;

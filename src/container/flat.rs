@@ -37,9 +37,66 @@ pub fn encode(values: &[f64], w: usize, mask: Option<&[bool]>) -> Vec<u8> {
     out
 }
 
+/// Decoded flat regions: runs of flat samples along rows, each with its region's value. It
+/// takes memory in proportion to the regions' outlines, not their area (a decoder holds it
+/// beside the whole raster).
+#[derive(Clone, Debug, Default)]
+pub struct Flat {
+    /// (first sample index, length, region), sorted by index; a run never crosses a row.
+    runs: Vec<(u64, u32, u32)>,
+    values: Vec<f64>,
+    n: usize,
+}
+
+impl Flat {
+    /// The value of sample `i` when it is flat.
+    pub fn value_at(&self, i: usize) -> Option<f64> {
+        let k = self.runs.partition_point(|r| r.0 <= i as u64);
+        let (start, len, region) = *self.runs.get(k.checked_sub(1)?)?;
+        (i as u64 - start < len as u64).then(|| self.values[region as usize])
+    }
+
+    /// Every run as (first sample index, length, value), in index order.
+    pub fn runs(&self) -> impl Iterator<Item = (usize, usize, f64)> + '_ {
+        self.runs
+            .iter()
+            .map(|&(s, l, r)| (s as usize, l as usize, self.values[r as usize]))
+    }
+
+    /// Per sample its region's value, NaN elsewhere (for a method that reads the values).
+    pub fn dense(&self) -> Vec<f64> {
+        let mut v = vec![f64::NAN; self.n];
+        for (s, l, x) in self.runs() {
+            v[s..s + l].fill(x);
+        }
+        v
+    }
+
+    /// Write the flat values over `data`, the window `(x0, y0, ww, wh)` of a `w`-wide raster.
+    pub fn overwrite(
+        &self,
+        data: &mut [f64],
+        w: usize,
+        (x0, y0, ww, wh): (usize, usize, usize, usize),
+    ) {
+        let first = self.runs.partition_point(|r| r.0 < (y0 * w) as u64);
+        for &(s, l, r) in &self.runs[first..] {
+            let (y, x) = (s as usize / w, s as usize % w);
+            if y >= y0 + wh {
+                break;
+            }
+            let (a, b) = (x.max(x0), (x + l as usize).min(x0 + ww));
+            if a < b {
+                let row = (y - y0) * ww;
+                data[row + a - x0..row + b - x0].fill(self.values[r as usize]);
+            }
+        }
+    }
+}
+
 /// Decode a flat-regions payload for a `w`-wide raster of `n` samples whose validity is
-/// `mask`: per sample its region's value, NaN elsewhere.
-pub fn decode(payload: &[u8], w: usize, n: usize, mask: Option<&[bool]>) -> Result<Vec<f64>> {
+/// `mask`.
+pub fn decode(payload: &[u8], w: usize, n: usize, mask: Option<&[bool]>) -> Result<Flat> {
     let mut r = ByteReader::new(payload, "flat section");
     let coding = r.u8("coding")?;
     if coding != CODING_CONTEXT {
@@ -87,16 +144,21 @@ pub fn decode(payload: &[u8], w: usize, n: usize, mask: Option<&[bool]>) -> Resu
             "the bitmap makes {found} regions, the header says {count}"
         )));
     }
-    Ok(lab
-        .iter()
-        .map(|&l| {
-            if l == 0 {
-                f64::NAN
-            } else {
-                values[l as usize - 1]
+    let mut runs = Vec::new();
+    for (y, row) in lab.chunks(w.max(1)).enumerate() {
+        let mut x = 0;
+        while x < row.len() {
+            let l = row[x];
+            let from = x;
+            while x < row.len() && row[x] == l {
+                x += 1;
             }
-        })
-        .collect())
+            if l != 0 {
+                runs.push(((y * w + from) as u64, (x - from) as u32, l - 1));
+            }
+        }
+    }
+    Ok(Flat { runs, values, n })
 }
 
 #[cfg(test)]
@@ -118,9 +180,29 @@ mod tests {
             }
         }
         let p = encode(&v, w, None);
-        let back = decode(&p, w, w * h, None).unwrap();
-        for (a, b) in v.iter().zip(&back) {
+        let flat = decode(&p, w, w * h, None).unwrap();
+        let back = flat.dense();
+        for (i, (a, b)) in v.iter().zip(&back).enumerate() {
             assert!(a == b || (a.is_nan() && b.is_nan()));
+            assert_eq!(
+                flat.value_at(i).map(f64::to_bits),
+                (!a.is_nan()).then(|| a.to_bits())
+            );
+        }
+        // A window's overwrite writes exactly the window's flat samples.
+        let (x0, y0, ww, wh) = (3, 2, 12, 5);
+        let mut win = vec![-1.0; ww * wh];
+        flat.overwrite(&mut win, w, (x0, y0, ww, wh));
+        for y in 0..wh {
+            for x in 0..ww {
+                let want = back[(y0 + y) * w + x0 + x];
+                let got = win[y * ww + x];
+                assert!(if want.is_nan() {
+                    got == -1.0
+                } else {
+                    got == want
+                });
+            }
         }
         for cut in 0..p.len() {
             assert!(decode(&p[..cut], w, w * h, None).is_err(), "prefix {cut}");
@@ -130,7 +212,7 @@ mod tests {
         mask[w * h - 1] = false;
         v[w * h - 1] = f64::NAN;
         let p = encode(&v, w, Some(&mask));
-        let back = decode(&p, w, w * h, Some(&mask)).unwrap();
+        let back = decode(&p, w, w * h, Some(&mask)).unwrap().dense();
         for (a, b) in v.iter().zip(&back) {
             assert!(a == b || (a.is_nan() && b.is_nan()));
         }

@@ -383,7 +383,7 @@ impl<R: Read + Seek> ContainerReader<R> {
 
     /// The flat regions (from the first flat section) of a raster with validity `mask`: per
     /// sample its region's value, NaN elsewhere; `None` when the file has none.
-    pub fn read_flat(&mut self, mask: Option<&[bool]>) -> Result<Option<Vec<f64>>> {
+    pub fn read_flat(&mut self, mask: Option<&[bool]>) -> Result<Option<flat::Flat>> {
         let n = self.header.samples() as usize;
         let w = self.header.width as usize;
         match self.find(SectionKind::FLAT) {

@@ -16,12 +16,16 @@
 
 use crate::geometry::triangulation::{Location, Triangulation, orient};
 
-/// Scratch buffers for evaluation (reuse one per thread to avoid allocation).
+/// Scratch buffers for evaluation (reuse one per thread to avoid allocation). Besides
+/// buffers it holds the last cavity's structure, reused while the next query point has the
+/// same cavity (checked exactly, see [`Surface::eval_in`]).
 #[derive(Default, Clone, Debug)]
 pub struct Scratch {
     /// `mark[t] == stamp` when triangle t is in the current cavity, at `slot[t]`.
     mark: Vec<u32>,
     slot: Vec<u32>,
+    /// `seen[t] == stamp` when triangle t was tested and found outside the cavity.
+    seen: Vec<u32>,
     stamp: u32,
     cavity: Vec<u32>,
     stack: Vec<u32>,
@@ -29,6 +33,53 @@ pub struct Scratch {
     bnd: Vec<(u32, u32, u32)>,
     cycle: Vec<(u32, u32, u32)>,
     poly: Vec<[f64; 2]>,
+    /// The boundary walk: (vertex, its fan's range in `walk_fan`) in walk order.
+    walk: Vec<(u32, u32, u32)>,
+    walk_fan: Vec<u32>,
+    // The reusable structure of the last cavity, in the spec's order: the exact circle tests
+    // of its triangles and of the real triangles next to it, each cavity triangle's first
+    // vertex and circumcentre offset, the cycle's vertices and heights from the lowest site
+    // id, and per vertex its fan (cavity slots) from the outgoing edge's triangle.
+    cav_circles: Vec<Circle>,
+    out_circles: Vec<Circle>,
+    cav_ao: Vec<([i64; 2], [f64; 2])>,
+    vpos: Vec<[i64; 2]>,
+    vh: Vec<f64>,
+    fan_start: Vec<u32>,
+    fan: Vec<u32>,
+    pv: Vec<[f64; 2]>,
+    /// The surface generation the structure belongs to (0: none).
+    generation: u64,
+}
+
+/// One triangle's exact circumcircle test (see [`TriInfo`]); `d == 0`: use the general
+/// predicate on triangle `t`.
+#[derive(Clone, Copy, Debug, Default)]
+struct Circle {
+    a: [i64; 2],
+    n: [i64; 2],
+    d: i64,
+    t: u32,
+}
+
+impl Scratch {
+    /// Size the per-triangle marks for `nt` slots and start a new visit stamp (clearing
+    /// every mark when it wraps); forgets the reusable structure.
+    fn next_stamp(&mut self, nt: usize) -> u32 {
+        if self.mark.len() < nt {
+            self.mark.resize(nt, 0);
+            self.slot.resize(nt, 0);
+            self.seen.resize(nt, 0);
+        }
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            self.mark.iter_mut().for_each(|m| *m = 0);
+            self.seen.iter_mut().for_each(|m| *m = 0);
+            self.stamp = 1;
+        }
+        self.generation = 0;
+        self.stamp
+    }
 }
 
 /// The interpolating surface: a triangulation of the sites and their heights.
@@ -36,6 +87,16 @@ pub struct Scratch {
 pub struct Surface {
     tri: Triangulation,
     heights: Vec<f64>,
+    info: Vec<TriInfo>,
+    /// Changes on every insertion (unique across surfaces), so a [`Scratch`] never reuses a
+    /// structure from another surface or an older state of this one.
+    generation: u64,
+}
+
+/// A fresh surface generation.
+fn next_generation() -> u64 {
+    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+    NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
 }
 
 #[inline]
@@ -50,6 +111,56 @@ fn cc0(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
     let la = a[0] * a[0] + a[1] * a[1];
     let lb = b[0] * b[0] + b[1] * b[1];
     [(b[1] * la - a[1] * lb) / d, (a[0] * lb - b[0] * la) / d]
+}
+
+/// What the evaluator keeps per triangle slot that does not depend on the query point: the
+/// canonical first vertex, the circumcentre's offset from it (the spec's `cc(b − a, c − a)`,
+/// so `C(t)` relative to p is one addition per coordinate), and an exact integer form of the
+/// circumcircle test. Kept in step with the triangulation by [`Surface::insert_near`].
+#[derive(Clone, Copy, Debug, Default)]
+struct TriInfo {
+    a: [i64; 2],
+    o: [f64; 2],
+    /// p is strictly inside the circumcircle iff `d·|p − a|² < 2 (p − a)·n` (exact in
+    /// i128 while the triangle spans under 2^19). `d == 0`: fall back to [`incircle`].
+    n: [i64; 2],
+    d: i64,
+}
+
+/// Triangles spanning less than this use the precomputed integer circle test.
+const EXACT_SPAN: i64 = 1 << 19;
+
+impl TriInfo {
+    fn of(tri: &Triangulation, t: u32) -> TriInfo {
+        let v = tri.tri(t).v;
+        if tri.tri(t).is_ghost() {
+            return TriInfo::default();
+        }
+        let r0 = if v[0] < v[1] && v[0] < v[2] {
+            0
+        } else if v[1] < v[2] {
+            1
+        } else {
+            2
+        };
+        let a = tri.point(v[r0]);
+        let b = tri.point(v[(r0 + 1) % 3]);
+        let c = tri.point(v[(r0 + 2) % 3]);
+        let (u, w) = ([b[0] - a[0], b[1] - a[1]], [c[0] - a[0], c[1] - a[1]]);
+        // Exactly the reference's float operations: (b − p) − (a − p) is b − a exactly.
+        let o = cc0([u[0] as f64, u[1] as f64], [w[0] as f64, w[1] as f64]);
+        let span = u.iter().chain(&w).map(|x| x.abs()).max().unwrap_or(0);
+        let (n, d) = if span < EXACT_SPAN {
+            let (lu, lw) = (u[0] * u[0] + u[1] * u[1], w[0] * w[0] + w[1] * w[1]);
+            (
+                [w[1] * lu - u[1] * lw, u[0] * lw - w[0] * lu],
+                2 * (u[0] * w[1] - u[1] * w[0]),
+            )
+        } else {
+            ([0, 0], 0)
+        };
+        TriInfo { a, o, n, d }
+    }
 }
 
 fn polygon_area(poly: &[[f64; 2]]) -> f64 {
@@ -84,9 +195,38 @@ impl Surface {
         h: f64,
         hint: Option<u32>,
     ) -> crate::error::Result<u32> {
+        let was_2d = self.tri.is_2d();
         let id = self.tri.insert_near(p, hint)?;
         self.heights.push(h);
+        self.generation = next_generation();
+        let slots = self.tri.num_triangle_slots();
+        if self.info.len() < slots {
+            self.info.resize(slots, TriInfo::default());
+        }
+        if was_2d {
+            for &t in self.tri.created() {
+                self.info[t as usize] = TriInfo::of(&self.tri, t);
+            }
+        } else if self.tri.is_2d() {
+            for t in 0..slots as u32 {
+                self.info[t as usize] = TriInfo::of(&self.tri, t);
+            }
+        }
         Ok(id)
+    }
+
+    /// Store the triangles in spatial order (see [`Triangulation::compact_spatially`]): the
+    /// same surface, faster to evaluate over a grid. Call it once the sites are all in.
+    pub fn compact(&mut self) {
+        if !self.tri.is_2d() {
+            return;
+        }
+        self.tri.compact_spatially();
+        let slots = self.tri.num_triangle_slots();
+        self.info = (0..slots as u32)
+            .map(|t| TriInfo::of(&self.tri, t))
+            .collect();
+        self.generation = next_generation();
     }
 
     /// The surface's value at `p`, or `None` outside the sites' convex hull.
@@ -105,8 +245,232 @@ impl Surface {
         }
     }
 
+    /// The exact circumcircle test of real triangle `t`, ready to copy where a loop wants it.
+    #[inline]
+    fn circle(&self, t: u32) -> Circle {
+        let f = &self.info[t as usize];
+        Circle {
+            a: f.a,
+            n: f.n,
+            d: f.d,
+            t,
+        }
+    }
+
+    /// Whether `p` is strictly inside circle `c` (exact).
+    #[inline]
+    fn inside(&self, c: &Circle, p: [i64; 2]) -> bool {
+        if c.d == 0 {
+            return self.tri.in_circle(c.t, p);
+        }
+        let (x, y) = (p[0] - c.a[0], p[1] - c.a[1]);
+        let pp = x * x + y * y;
+        // A float evaluation decides unless the two sides are within its rounding error
+        // (a few ulps of the largest term; 2^-40 of their sum is far beyond it), then the
+        // exact i128 one.
+        let (tx, ty) = (x as f64 * c.n[0] as f64, y as f64 * c.n[1] as f64);
+        let l = c.d as f64 * pp as f64;
+        let r = 2.0 * (tx + ty);
+        let tol = (l.abs() + 2.0 * (tx.abs() + ty.abs())) * (1.0 / (1u64 << 40) as f64);
+        if l < r - tol {
+            return true;
+        }
+        if l > r + tol {
+            return false;
+        }
+        (c.d as i128) * (pp as i128)
+            < 2 * ((x as i128) * (c.n[0] as i128) + (y as i128) * (c.n[1] as i128))
+    }
+
     /// Evaluate at `p` known to lie in (or on) real triangle `t` and not on a vertex.
+    ///
+    /// The same value, bit for bit, as the spec's operation order
+    /// ([`eval_in_reference`](Self::eval_in_reference)), faster: circumcircle tests and
+    /// circumcentre offsets are precomputed per triangle, the boundary cycle is walked
+    /// instead of sorted, and when `p` has the cavity of the previous call on this scratch
+    /// (every cavity triangle still contains p and no triangle next to it does, so by the
+    /// cavity's connectedness it is the same set) its cycle and fans are reused; only the
+    /// floating-point operations, which depend on p, run again.
     pub fn eval_in(&self, p: [i64; 2], t: u32, s: &mut Scratch) -> f64 {
+        let tri = &self.tri;
+        let tr = *tri.tri(t);
+        // On a hull edge: linear along the edge.
+        for k in 0..3 {
+            if tri.tri(tr.n[k]).is_ghost() {
+                let a = tr.v[(k + 1) % 3];
+                let b = tr.v[(k + 2) % 3];
+                if orient(tri.point(a), tri.point(b), p) == 0 {
+                    return self.lerp_edge(a, b, p);
+                }
+            }
+        }
+        let same = s.generation == self.generation
+            && s.cav_circles.iter().all(|c| self.inside(c, p))
+            && !s.out_circles.iter().any(|c| self.inside(c, p));
+        if !same && !self.build_cavity(p, t, s) {
+            return self.eval_in_reference_free(p, t, s);
+        }
+        self.weights(p, s)
+    }
+
+    /// Sibson's value at `p` from the cavity structure in `s` (the floating-point part).
+    #[inline(never)]
+    fn weights(&self, p: [i64; 2], s: &mut Scratch) -> f64 {
+        // Circumcentres of the cavity triangles relative to p (the spec's a + cc(b−a, c−a)),
+        // and the cycle's vertices relative to p (the first repeated at the end).
+        s.centres.clear();
+        s.centres.extend(s.cav_ao.iter().map(|(a, o)| {
+            let d = sub(*a, p);
+            [d[0] + o[0], d[1] + o[1]]
+        }));
+        s.pv.clear();
+        s.pv.extend(s.vpos.iter().map(|&v| sub(v, p)));
+        let k = s.vpos.len();
+        s.pv.push(s.pv[0]);
+        let mut num = 0.0;
+        let mut den = 0.0;
+        let mut g_prev = cc0(s.pv[k - 1], s.pv[k]);
+        for i in 0..k {
+            let g_next = cc0(s.pv[i], s.pv[i + 1]);
+            // Shoelace over [g_next, C(t₁), …, C(t_m), g_prev], term by term in the
+            // reference's order.
+            let mut acc = 0.0;
+            let mut prev = g_next;
+            for &c in &s.fan[s.fan_start[i] as usize..s.fan_start[i + 1] as usize] {
+                let q = s.centres[c as usize];
+                acc += prev[0] * q[1] - prev[1] * q[0];
+                prev = q;
+            }
+            acc += prev[0] * g_prev[1] - prev[1] * g_prev[0];
+            acc += g_prev[0] * g_next[1] - g_prev[1] * g_next[0];
+            let w = (0.5 * acc).abs();
+            num += w * s.vh[i];
+            den += w;
+            g_prev = g_next;
+        }
+        num / den
+    }
+
+    /// Find the cavity of `p` (flood fill from `t`), walk its boundary and lay out the cycle
+    /// in the spec's order (from the lowest site id, each vertex's cavity fan from the
+    /// triangle holding its outgoing edge); `false` if the walk did not close (never on a
+    /// valid triangulation; the caller then evaluates by the reference).
+    #[inline(never)]
+    fn build_cavity(&self, p: [i64; 2], t: u32, s: &mut Scratch) -> bool {
+        let tri = &self.tri;
+        let stamp = s.next_stamp(tri.num_triangle_slots());
+        s.cavity.clear();
+        s.out_circles.clear();
+        s.stack.clear();
+        s.mark[t as usize] = stamp;
+        s.slot[t as usize] = 0;
+        s.cavity.push(t);
+        s.stack.push(t);
+        // A boundary edge to start the walk from: (triangle, index of the opposite vertex).
+        let mut edge = None;
+        while let Some(c) = s.stack.pop() {
+            let n = tri.tri(c).n;
+            for (k, nb) in n.into_iter().enumerate() {
+                let nbu = nb as usize;
+                if s.mark[nbu] == stamp {
+                    continue;
+                }
+                if s.seen[nbu] != stamp {
+                    if !tri.tri(nb).is_ghost() {
+                        let circle = self.circle(nb);
+                        if self.inside(&circle, p) {
+                            s.mark[nbu] = stamp;
+                            s.slot[nbu] = s.cavity.len() as u32;
+                            s.cavity.push(nb);
+                            s.stack.push(nb);
+                            continue;
+                        }
+                        s.out_circles.push(circle);
+                    }
+                    s.seen[nbu] = stamp;
+                }
+                edge.get_or_insert((c, k));
+            }
+        }
+        let Some((mut c, k)) = edge else {
+            return false;
+        };
+        // Walk the boundary counter-clockwise: at each vertex b (entered through triangle c),
+        // turn around b through the cavity until the outgoing edge b→x leaves it. Fans are
+        // collected from the incoming edge's triangle to the outgoing one's.
+        s.walk.clear();
+        s.walk_fan.clear();
+        let start = tri.tri(c).v[(k + 2) % 3];
+        let mut b = start;
+        let cap = 3 * s.cavity.len() + 3;
+        loop {
+            let from = s.walk_fan.len() as u32;
+            let next;
+            loop {
+                if s.walk_fan.len() > cap {
+                    return false;
+                }
+                s.walk_fan.push(s.slot[c as usize]);
+                let tr = tri.tri(c);
+                let kb = tr.index_of(b);
+                let nb = tr.n[(kb + 2) % 3];
+                if s.mark[nb as usize] == stamp {
+                    c = nb;
+                } else {
+                    next = tr.v[(kb + 1) % 3];
+                    break;
+                }
+            }
+            s.walk.push((b, from, s.walk_fan.len() as u32));
+            if next == start {
+                break;
+            }
+            if s.walk.len() > cap {
+                return false;
+            }
+            b = next;
+        }
+        // The spec's order: from the lowest site id; each fan reversed.
+        let kk = s.walk.len();
+        let first = (0..kk).min_by_key(|&i| s.walk[i].0).unwrap_or(0);
+        s.vpos.clear();
+        s.vh.clear();
+        s.fan.clear();
+        s.fan_start.clear();
+        for i in 0..kk {
+            let (v, from, to) = s.walk[(first + i) % kk];
+            s.vpos.push(tri.point(v));
+            s.vh.push(self.heights[v as usize]);
+            s.fan_start.push(s.fan.len() as u32);
+            s.fan
+                .extend(s.walk_fan[from as usize..to as usize].iter().rev().copied());
+        }
+        s.fan_start.push(s.fan.len() as u32);
+        s.cav_circles.clear();
+        s.cav_ao.clear();
+        for &c in &s.cavity {
+            s.cav_circles.push(self.circle(c));
+            let f = &self.info[c as usize];
+            s.cav_ao.push((f.a, f.o));
+        }
+        s.generation = self.generation;
+        true
+    }
+
+    /// The reference evaluation (always compiled for the fallback of [`eval_in`]).
+    fn eval_in_reference_free(&self, p: [i64; 2], t: u32, s: &mut Scratch) -> f64 {
+        s.generation = 0;
+        self.reference(p, t, s)
+    }
+
+    /// The spec's evaluation, operation by operation, with nothing reused between calls: the
+    /// reference that [`eval_in`](Self::eval_in) must match bit for bit (tests compare them).
+    #[cfg(test)]
+    pub fn eval_in_reference(&self, p: [i64; 2], t: u32, s: &mut Scratch) -> f64 {
+        self.eval_in_reference_free(p, t, s)
+    }
+
+    fn reference(&self, p: [i64; 2], t: u32, s: &mut Scratch) -> f64 {
         let tri = &self.tri;
         let tr = *tri.tri(t);
         // On a hull edge: linear along the edge.
@@ -118,12 +482,7 @@ impl Surface {
             }
         }
         // Cavity: real triangles whose circumcircle strictly contains p.
-        let nt = tri.num_triangle_slots();
-        if s.mark.len() < nt {
-            s.mark.resize(nt, 0);
-            s.slot.resize(nt, 0);
-        }
-        let stamp = crate::geometry::triangulation::next_stamp(&mut s.stamp, &mut s.mark);
+        let stamp = s.next_stamp(tri.num_triangle_slots());
         s.cavity.clear();
         s.stack.clear();
         s.mark[t as usize] = stamp;
@@ -227,9 +586,8 @@ impl Surface {
     }
 
     /// Evaluate every sample of the window `[x0, x0+w) × [y0, y0+h)` of the integer grid for
-    /// which `want(x, y)` holds, by rasterizing each triangle once (no point location).
-    /// Returns row-major values of the window (NaN where not wanted); `None` when a wanted
-    /// sample lies outside the sites' hull.
+    /// which `want(x, y)` holds. Returns row-major values of the window (NaN where not
+    /// wanted); `None` when a wanted sample lies outside the sites' hull.
     pub fn eval_window(
         &self,
         x0: i64,
@@ -238,14 +596,30 @@ impl Surface {
         h: usize,
         want: impl Fn(i64, i64) -> bool,
     ) -> Option<Vec<f64>> {
-        let out = self.eval_lattice(x0, y0, w, h, 1, &want);
+        let mut out = vec![f64::NAN; w * h];
+        self.eval_window_into(x0, y0, w, h, want, &mut out)
+            .then_some(out)
+    }
+
+    /// [`eval_window`](Self::eval_window) into `out` (`w·h` values, left NaN where not
+    /// wanted); `false` when a wanted sample lies outside the sites' hull.
+    pub fn eval_window_into(
+        &self,
+        x0: i64,
+        y0: i64,
+        w: usize,
+        h: usize,
+        want: impl Fn(i64, i64) -> bool,
+        out: &mut [f64],
+    ) -> bool {
+        self.eval_lattice_into(x0, y0, w, h, 1, &want, out);
         for (i, v) in out.iter().enumerate() {
             let (x, y) = (x0 + (i % w) as i64, y0 + (i / w) as i64);
             if v.is_nan() && want(x, y) {
-                return None;
+                return false;
             }
         }
-        Some(out)
+        true
     }
 
     /// Evaluate the lattice points `(x0 + i·step, y0 + j·step)`, `i < w`, `j < h`, for which
@@ -260,13 +634,27 @@ impl Surface {
         step: i64,
         want: &dyn Fn(i64, i64) -> bool,
     ) -> Vec<f64> {
-        let n = w * h;
-        let mut out = vec![f64::NAN; n];
+        let mut out = vec![f64::NAN; w * h];
+        self.eval_lattice_into(x0, y0, w, h, step, want, &mut out);
+        out
+    }
+
+    /// [`eval_lattice`](Self::eval_lattice) into `out` (`w·h` values, NaN on entry).
+    #[allow(clippy::too_many_arguments)]
+    fn eval_lattice_into(
+        &self,
+        x0: i64,
+        y0: i64,
+        w: usize,
+        h: usize,
+        step: i64,
+        want: &dyn Fn(i64, i64) -> bool,
+        out: &mut [f64],
+    ) {
         let step = step.max(1);
         let (x1, y1) = (x0 + (w as i64 - 1) * step, y0 + (h as i64 - 1) * step);
         let idx = |x: i64, y: i64| ((y - y0) / step) as usize * w + ((x - x0) / step) as usize;
         // First lattice coordinate ≥ v on the lattice through `origin`.
-        let up = |v: i64, origin: i64| origin + (v - origin + step - 1).div_euclid(step) * step;
         if !self.tri.is_2d() {
             for y in (y0..=y1).step_by(step as usize) {
                 for x in (x0..=x1).step_by(step as usize) {
@@ -275,49 +663,35 @@ impl Surface {
                     }
                 }
             }
-            return out;
+            return;
         }
-        let mut done = vec![false; n];
+        // Row by row: the next sample is found by a short walk from the last one's triangle,
+        // and neighbouring samples often share their cavity (see `eval_in`).
         let mut s = Scratch::default();
-        for t in self.tri.real_triangles() {
-            let v = self.tri.tri(t).v;
-            let pts = v.map(|i| self.tri.point(i));
-            let ty0 = pts.iter().map(|p| p[1]).min().unwrap_or(0).max(y0);
-            let ty1 = pts.iter().map(|p| p[1]).max().unwrap_or(0).min(y1);
-            let mut y = up(ty0, y0);
-            while y <= ty1 {
-                // Intersect the three closed half-planes with row y, exactly.
-                let (mut lo, mut hi) = (x0, x1);
-                for k in 0..3 {
-                    let a = pts[k];
-                    let b = pts[(k + 1) % 3];
-                    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-                    let kk = dx * (y - a[1]);
-                    if dy > 0 {
-                        hi = hi.min(a[0] + kk.div_euclid(dy));
-                    } else if dy < 0 {
-                        lo = lo.max(a[0] - kk.div_euclid(-dy));
-                    } else if kk < 0 {
-                        hi = lo - 1;
-                    }
+        let mut row_hint: Option<u32> = None;
+        for j in 0..h {
+            let y = y0 + j as i64 * step;
+            let mut hint = row_hint;
+            let mut first: Option<u32> = None;
+            let row = &mut out[j * w..(j + 1) * w];
+            for (i, o) in row.iter_mut().enumerate() {
+                let x = x0 + i as i64 * step;
+                if !want(x, y) {
+                    continue;
                 }
-                let mut x = up(lo, x0);
-                while x <= hi {
-                    let i = idx(x, y);
-                    if !done[i] && want(x, y) {
-                        done[i] = true;
-                        let p = [x, y];
-                        out[i] = match v.iter().position(|&vi| self.tri.point(vi) == p) {
-                            Some(k) => self.heights[v[k] as usize],
-                            None => self.eval_in(p, t, &mut s),
-                        };
+                let p = [x, y];
+                match self.tri.locate(p, hint) {
+                    Location::Vertex(v) => *o = self.heights[v as usize],
+                    Location::Triangle(t) => {
+                        first.get_or_insert(t);
+                        hint = Some(t);
+                        *o = self.eval_in(p, t, &mut s);
                     }
-                    x += step;
+                    Location::Outside => {}
                 }
-                y += step;
             }
+            row_hint = first.or(row_hint);
         }
-        out
     }
 
     fn lerp_edge(&self, a: u32, b: u32, p: [i64; 2]) -> f64 {
@@ -363,6 +737,7 @@ impl Surface {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::triangulation::Location;
     use crate::testutil::Rng;
 
     fn surface(pts: &[[i64; 2]], mut f: impl FnMut([i64; 2]) -> f64) -> Surface {
@@ -525,6 +900,58 @@ mod tests {
             s.eval_window(0, 0, 47, 34, |_, _| true).is_none(),
             "outside the hull"
         );
+    }
+
+    /// Every sample of `[0, w] × [0, h]` by the fast evaluator (in scanline order, reusing
+    /// cavities, and in a scrambled order) against the reference, bit for bit.
+    fn check_fast_matches_reference(s: &Surface, w: i64, h: i64, seed: u64) {
+        let mut fast = Scratch::default();
+        let mut refs = Scratch::default();
+        let mut pts: Vec<[i64; 2]> = (0..=h).flat_map(|y| (0..=w).map(move |x| [x, y])).collect();
+        for pass in 0..2 {
+            if pass == 1 {
+                let mut rng = Rng(seed);
+                for i in (1..pts.len()).rev() {
+                    pts.swap(i, rng.below(i as u64 + 1) as usize);
+                }
+            }
+            for &p in &pts {
+                let Location::Triangle(t) = s.tri.locate(p, None) else {
+                    continue;
+                };
+                let a = s.eval_in(p, t, &mut fast);
+                let b = s.eval_in_reference(p, t, &mut refs);
+                assert_eq!(a.to_bits(), b.to_bits(), "{p:?}: {a} vs {b}");
+            }
+        }
+    }
+
+    #[test]
+    fn fast_evaluation_matches_the_reference_bit_for_bit() {
+        for seed in 1..8 {
+            let pts = random_sites(40 + 30 * seed as usize, 60, 45, seed);
+            let mut rng = Rng(seed + 100);
+            let s = surface(&pts, |_| rng.below(5000) as f64 * 0.37);
+            check_fast_matches_reference(&s, 60, 45, seed);
+        }
+        // Co-circular sites on a lattice (the degenerate case of gridded data), and long thin
+        // triangles (a few sites far apart, as over flat regions).
+        let lattice: Vec<[i64; 2]> = (0..=8)
+            .flat_map(|y| (0..=8).map(move |x| [x * 6, y * 5]))
+            .collect();
+        let s = surface(&lattice, |p| (p[0] * 7 + p[1] * p[1]) as f64);
+        check_fast_matches_reference(&s, 48, 40, 9);
+        let thin = [
+            [0, 0],
+            [300, 0],
+            [300, 7],
+            [0, 7],
+            [150, 3],
+            [40, 1],
+            [260, 6],
+        ];
+        let s = surface(&thin, |p| (p[0] + 11 * p[1]) as f64 * 0.5);
+        check_fast_matches_reference(&s, 300, 7, 10);
     }
 
     #[test]

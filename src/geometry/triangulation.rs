@@ -35,7 +35,7 @@ impl Tri {
         self.v[2] == GHOST
     }
     #[inline]
-    fn index_of(&self, v: u32) -> usize {
+    pub fn index_of(&self, v: u32) -> usize {
         if self.v[0] == v {
             0
         } else if self.v[1] == v {
@@ -181,6 +181,52 @@ impl Triangulation {
             self.mark.push(0);
             (self.tris.len() - 1) as u32
         }
+    }
+
+    /// Renumber the live triangles so that triangles near each other in the plane are near
+    /// each other in memory (strips of 16 rows, then by column; ghosts last), dropping free
+    /// slots. Changes no vertex id and no triangle, only their storage order, so every
+    /// evaluation gives the same bits; walks and cavities then touch fewer cache lines.
+    pub fn compact_spatially(&mut self) {
+        let live: Vec<u32> = (0..self.tris.len() as u32)
+            .filter(|&t| self.alive[t as usize])
+            .collect();
+        let key = |t: u32| {
+            let tr = &self.tris[t as usize];
+            let real: Vec<[i64; 2]> =
+                tr.v.iter()
+                    .filter(|&&v| v != GHOST)
+                    .map(|&v| self.pts[v as usize])
+                    .collect();
+            let n = real.len() as i64;
+            let cy = real.iter().map(|p| p[1]).sum::<i64>() / n;
+            let cx = real.iter().map(|p| p[0]).sum::<i64>() / n;
+            (tr.is_ghost(), cy.div_euclid(16), cx, t)
+        };
+        let mut order: Vec<((bool, i64, i64, u32), u32)> =
+            live.iter().map(|&t| (key(t), t)).collect();
+        order.sort_unstable();
+        let mut new_id = vec![NONE; self.tris.len()];
+        for (i, &(_, t)) in order.iter().enumerate() {
+            new_id[t as usize] = i as u32;
+        }
+        let tris: Vec<Tri> = order
+            .iter()
+            .map(|&(_, t)| {
+                let tr = self.tris[t as usize];
+                Tri {
+                    v: tr.v,
+                    n: tr.n.map(|x| new_id[x as usize]),
+                }
+            })
+            .collect();
+        self.last = new_id[self.last as usize];
+        self.alive = vec![true; tris.len()];
+        self.mark = vec![0; tris.len()];
+        self.stamp = 0;
+        self.tris = tris;
+        self.free.clear();
+        self.created.clear();
     }
 
     /// Whether `p` is in the (generalised) circumcircle of triangle `t`: strictly inside for

@@ -288,7 +288,7 @@ pub(crate) struct DecodeJob<'a> {
     pub threads: usize,
     /// The flat regions' values (NaN outside them); `mask` already marks their samples
     /// invalid, and the codec writes their values over whatever the method decodes there.
-    pub flat: Option<&'a [f64]>,
+    pub flat: Option<&'a crate::container::flat::Flat>,
     /// The decoded surface of the section this one refines (reserved for the residual
     /// layer; `None` for every method today).
     #[allow(dead_code)]

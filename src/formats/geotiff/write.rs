@@ -63,24 +63,27 @@ pub fn write(r: &Raster) -> Result<Vec<u8>> {
             encode::<Gray64Float>(size, &data, Predictor::None, &tags)
         }
         _ => {
-            let (codes, nodata) = integer_codes(r, st, has_invalid)?;
-            tags.nodata = nodata;
+            // Codes straight in the output type (each checked to fit it first).
             let h = Predictor::Horizontal;
             match st {
                 SampleType::U8 => {
-                    let d: Vec<u8> = codes.iter().map(|&c| c as u8).collect();
+                    let (d, nodata) = integer_codes(r, st, has_invalid, |c| c as u8)?;
+                    tags.nodata = nodata;
                     encode::<Gray8>(size, &d, h, &tags)
                 }
                 SampleType::I16 => {
-                    let d: Vec<i16> = codes.iter().map(|&c| c as i16).collect();
+                    let (d, nodata) = integer_codes(r, st, has_invalid, |c| c as i16)?;
+                    tags.nodata = nodata;
                     encode::<GrayI16>(size, &d, h, &tags)
                 }
                 SampleType::U16 => {
-                    let d: Vec<u16> = codes.iter().map(|&c| c as u16).collect();
+                    let (d, nodata) = integer_codes(r, st, has_invalid, |c| c as u16)?;
+                    tags.nodata = nodata;
                     encode::<Gray16>(size, &d, h, &tags)
                 }
                 _ => {
-                    let d: Vec<i32> = codes.iter().map(|&c| c as i32).collect();
+                    let (d, nodata) = integer_codes(r, st, has_invalid, |c| c as i32)?;
+                    tags.nodata = nodata;
                     encode::<GrayI32>(size, &d, h, &tags)
                 }
             }
@@ -105,7 +108,12 @@ fn output_type(r: &Raster) -> SampleType {
 
 /// Integer codes of every sample (valid ones rounded, invalid ones the fill value) and the
 /// nodata value to declare.
-fn integer_codes(r: &Raster, st: SampleType, has_invalid: bool) -> Result<(Vec<i64>, Option<f64>)> {
+fn integer_codes<T>(
+    r: &Raster,
+    st: SampleType,
+    has_invalid: bool,
+    cast: impl Fn(i64) -> T,
+) -> Result<(Vec<T>, Option<f64>)> {
     let (lo, hi) = st
         .int_range()
         .ok_or_else(|| Error::invalid(format!("{} is not an integer type", st.name())))?;
@@ -142,7 +150,7 @@ fn integer_codes(r: &Raster, st: SampleType, has_invalid: bool) -> Result<(Vec<i
     let mut codes = Vec::with_capacity(r.len());
     for (i, &v) in r.data.iter().enumerate() {
         if !r.is_valid(i) {
-            codes.push(fill as i64);
+            codes.push(cast(fill as i64));
             continue;
         }
         let c = v.round();
@@ -154,7 +162,7 @@ fn integer_codes(r: &Raster, st: SampleType, has_invalid: bool) -> Result<(Vec<i
                 st.name()
             )));
         }
-        codes.push(c as i64);
+        codes.push(cast(c as i64));
     }
     let nodata = match r.nodata {
         Some(nd) => Some(nd),

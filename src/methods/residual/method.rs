@@ -34,7 +34,8 @@ impl Representation for Residual {
         Ok((payload, bound).into())
     }
     fn decode_full(&self, job: &DecodeJob) -> Result<Vec<f64>> {
-        decode(job.payload, job.header, job.mask, job.flat)
+        let flat = job.flat.map(|f| f.dense());
+        decode(job.payload, job.header, job.mask, flat.as_deref())
     }
     fn has_stats(&self) -> bool {
         true

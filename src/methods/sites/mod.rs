@@ -306,6 +306,7 @@ pub fn decode_sites(
         }
         levels.push(got);
     }
+    st.surf.compact();
     Ok(DecodedSites {
         surface: st.surf,
         sites,
@@ -333,45 +334,41 @@ pub fn render(
     let width = header.width as usize;
     let valid = |x: i64, y: i64| mask.is_none_or(|m| m[y as usize * width + x as usize]);
     let threads = threads.clamp(1, 64).min(h.div_ceil(64).max(1));
-    let band = h.div_ceil(threads);
-    // Each band is evaluated in chunks of rows, reporting the rows done after each (a window
-    // evaluates to exactly the samples of the whole, so chunking changes no value).
+    // Every thread writes its own chunks of rows straight into the output, taking the next
+    // chunk from a shared counter (a window evaluates to exactly the samples of the whole,
+    // so chunking changes no value).
+    const CHUNK: usize = 64;
+    let mut vals = vec![f64::NAN; w * h];
+    let chunks: Vec<(usize, &mut [f64])> = vals.chunks_mut((w * CHUNK).max(1)).enumerate().collect();
+    let queue = std::sync::Mutex::new(chunks.into_iter());
     let rows_done = std::sync::atomic::AtomicUsize::new(0);
-    let eval_band = |by: usize, bh: usize| -> Option<Vec<f64>> {
-        const CHUNK: usize = 64;
-        let mut out = Vec::with_capacity(w * bh);
-        let mut y = 0;
-        while y < bh {
-            let ch = CHUNK.min(bh - y);
-            out.extend(d.surface.eval_window(x0 as i64, (y0 + by + y) as i64, w, ch, valid)?);
-            y += ch;
+    let covered = std::sync::atomic::AtomicBool::new(true);
+    let work = || {
+        loop {
+            let next = queue.lock().map(|mut q| q.next()).unwrap_or(None);
+            let Some((k, chunk)) = next else { break };
+            let ch = chunk.len() / w.max(1);
+            let y = (y0 + k * CHUNK) as i64;
+            if !d.surface.eval_window_into(x0 as i64, y, w, ch, valid, chunk) {
+                covered.store(false, std::sync::atomic::Ordering::Relaxed);
+            }
             let done = rows_done.fetch_add(ch, std::sync::atomic::Ordering::Relaxed) + ch;
             progress(done as f64 / h.max(1) as f64);
         }
-        Some(out)
     };
-    let bands: Vec<Option<Vec<f64>>> = if threads == 1 {
-        vec![eval_band(0, h)]
+    if threads == 1 || w == 0 {
+        work();
     } else {
         std::thread::scope(|sc| {
-            let handles: Vec<_> = (0..threads)
-                .map(|k| {
-                    let (by, bh) = (k * band, band.min(h.saturating_sub(k * band)));
-                    let eval_band = &eval_band;
-                    sc.spawn(move || eval_band(by, bh))
-                })
-                .collect();
-            handles
-                .into_iter()
-                .map(|hd| hd.join().unwrap_or(None))
-                .collect()
-        })
-    };
-    let mut vals = Vec::with_capacity(w * h);
-    for b in bands {
-        vals.extend(b.ok_or_else(|| {
-            Error::corrupt("sites section: the sites do not cover every valid sample")
-        })?);
+            for _ in 0..threads {
+                sc.spawn(work);
+            }
+        });
+    }
+    if !covered.into_inner() {
+        return Err(Error::corrupt(
+            "sites section: the sites do not cover every valid sample",
+        ));
     }
     let fill = header.nodata.unwrap_or(f64::NAN);
     for yy in 0..h {
@@ -456,6 +453,7 @@ pub fn render_scaled(
         sy * w + sx
     };
     let want = |x: i64, y: i64| mask.is_none_or(|m| m[nearest(x, y)]);
+    surf.compact();
     let vals = surf.eval_lattice(0, 0, ow, oh, q, &want);
     let fill = header.nodata.unwrap_or(f64::NAN);
     let mut out_mask = vec![true; ow * oh];

@@ -130,16 +130,18 @@ struct State<'a> {
     block_ver: Vec<u32>,
     heap: BinaryHeap<(u64, std::cmp::Reverse<u32>, u32)>,
     scratch: Scratch,
-    stamp: Vec<u32>,
-    round: u32,
     sum_sq: f64,
     norm: Norm,
     /// Samples whose error is stale (inside a new circumdisk, not yet re-evaluated).
     dirty: Vec<bool>,
     /// Dirty samples per block (listed once each).
     block_dirty: Vec<Vec<u32>>,
+    /// Valid samples per block.
+    block_valid: Vec<u16>,
     dirty_blocks: Vec<u32>,
     evals: u64,
+    scanned: u64,
+    marked: u64,
     /// A triangle near each block (where its last sample was found), to start walks from.
     block_hint: Vec<u32>,
 }
@@ -185,8 +187,6 @@ impl State<'_> {
     /// stale: their error is recomputed when their block reaches the top of the heap or
     /// before a stopping decision (lazy evaluation; most are re-dirtied before they matter).
     fn update_after_insert(&mut self) {
-        self.round = self.round.wrapping_add(1);
-        let round = self.round;
         let (w, h) = (self.s.width as i64, self.s.height as i64);
         let created: Vec<u32> = self.surf.triangulation().created().to_vec();
         for t in created {
@@ -194,37 +194,71 @@ impl State<'_> {
             if tri.is_ghost() {
                 continue;
             }
-            let [a, b, c] = tri.v.map(|v| self.surf.triangulation().point(v));
-            // Circumcircle bounding box, padded by one sample for rounding.
+            let [a, b_, c] = tri.v.map(|v| self.surf.triangulation().point(v));
+            // The circumcircle, in floating point (only to bound the samples to test).
             let (ax, ay) = (a[0] as f64, a[1] as f64);
-            let (bx, by) = ((b[0] - a[0]) as f64, (b[1] - a[1]) as f64);
+            let (bx, by) = ((b_[0] - a[0]) as f64, (b_[1] - a[1]) as f64);
             let (cx, cy) = ((c[0] - a[0]) as f64, (c[1] - a[1]) as f64);
             let d = 2.0 * (bx * cy - by * cx);
             let lb = bx * bx + by * by;
             let lc = cx * cx + cy * cy;
             let ux = (cy * lb - by * lc) / d;
             let uy = (bx * lc - cx * lb) / d;
-            let r = (ux * ux + uy * uy).sqrt();
-            let x0 = ((ax + ux - r).floor() as i64 - 1).max(0);
-            let x1 = ((ax + ux + r).ceil() as i64 + 1).min(w - 1);
-            let y0 = ((ay + uy - r).floor() as i64 - 1).max(0);
-            let y1 = ((ay + uy + r).ceil() as i64 + 1).min(h - 1);
-            for y in y0..=y1 {
-                for x in x0..=x1 {
-                    let i = (y * w + x) as usize;
-                    if self.stamp[i] == round || self.dirty[i] || !(self.s.valid)(i) {
+            let r2 = ux * ux + uy * uy;
+            let r = r2.sqrt();
+            let (ox, oy) = (ax + ux, ay + uy);
+            // The circle's chord on row y, padded by one sample for rounding (the exact test
+            // below decides which samples are in the closed disk).
+            let chord = |y: i64| -> (i64, i64) {
+                let dy = (y as f64 - oy).abs() - 1.0;
+                let half = if dy <= 0.0 { r } else { (r2 - dy * dy).max(0.0).sqrt() };
+                (
+                    ((ox - half).floor() as i64 - 1).max(0),
+                    ((ox + half).ceil() as i64 + 1).min(w - 1),
+                )
+            };
+            let y0 = ((oy - r).floor() as i64 - 1).max(0);
+            let y1 = ((oy + r).ceil() as i64 + 1).min(h - 1);
+            if y0 > y1 {
+                continue;
+            }
+            // Block by block: a block without valid samples, or whose valid samples are all
+            // stale already, is skipped whole (large circles over flat regions and nodata
+            // would otherwise be scanned sample by sample after every insertion).
+            let b = BLOCK as i64;
+            for by in y0 / b..=y1 / b {
+                let (ry0, ry1) = ((by * b).max(y0), (by * b + b - 1).min(y1));
+                // The widest chord in this band of rows: at the row nearest the centre.
+                let yc = (oy.round() as i64).clamp(ry0, ry1);
+                let (cx0, cx1) = chord(yc);
+                if cx0 > cx1 {
+                    continue;
+                }
+                for bx in cx0 / b..=cx1 / b {
+                    let bl = by as usize * self.bw + bx as usize;
+                    if self.block_dirty[bl].len() >= self.block_valid[bl] as usize {
                         continue;
                     }
-                    if incircle(a, b, c, [x, y]) < 0 {
-                        continue;
+                    for y in ry0..=ry1 {
+                        let (x0, x1) = chord(y);
+                        for x in x0.max(bx * b)..=x1.min(bx * b + b - 1) {
+                            let i = (y * w + x) as usize;
+                            self.scanned += 1;
+                            // Marked already (by this insertion or an earlier one): stale.
+                            if self.dirty[i] || !(self.s.valid)(i) {
+                                continue;
+                            }
+                            if incircle(a, b_, c, [x, y]) < 0 {
+                                continue;
+                            }
+                            self.dirty[i] = true;
+                            self.marked += 1;
+                            if self.block_dirty[bl].is_empty() {
+                                self.dirty_blocks.push(bl as u32);
+                            }
+                            self.block_dirty[bl].push(i as u32);
+                        }
                     }
-                    self.stamp[i] = round;
-                    self.dirty[i] = true;
-                    let bl = self.block_of(i);
-                    if self.block_dirty[bl].is_empty() {
-                        self.dirty_blocks.push(bl as u32);
-                    }
-                    self.block_dirty[bl].push(i as u32);
                 }
             }
         }
@@ -327,14 +361,21 @@ pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> R
         block_ver: vec![0; bw * bh],
         heap: BinaryHeap::new(),
         scratch: Scratch::default(),
-        stamp: vec![0; n],
-        round: 0,
         sum_sq: 0.0,
         norm: p.norm,
         dirty: vec![false; n],
         block_dirty: vec![Vec::new(); bw * bh],
+        block_valid: {
+            let mut v = vec![0u16; bw * bh];
+            for i in (0..n).filter(|&i| (s.valid)(i)) {
+                v[(i / s.width / BLOCK) * bw + (i % s.width) / BLOCK] += 1;
+            }
+            v
+        },
         dirty_blocks: Vec::new(),
         evals: 0,
+        scanned: 0,
+        marked: 0,
         block_hint: vec![u32::MAX; bw * bh],
     };
     // Initial errors: evaluate the hull surface everywhere.
@@ -426,8 +467,10 @@ pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> R
     }
     if std::env::var_os("VTZ_DEBUG_SELECT").is_some() {
         eprintln!(
-            "select: {} sites, {} evaluations ({:.1} per sample)",
+            "select: {} sites, {} scanned, {} marked, {} evaluations ({:.1} per sample)",
             sel.sites.len(),
+            st.scanned,
+            st.marked,
             st.evals,
             st.evals as f64 / valid_count as f64
         );
