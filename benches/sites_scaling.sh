@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Sites (Sibson) encode and decode time over growing rasters, one core: Istria crops 300²,
-# 600², 1200², 2400² (the top-left corners of ../shared/corpus/srtm1_N45E013_istria_crop2400)
+# 600², 1200² (centred in ../shared/corpus/srtm1_N45E013_istria_crop2400), that 2400² crop
 # and the full 3600² SRTM1 tile (../shared/corpus/extra/srtm1_N45E013_full.png, metres =
-# value − 32768), at 1 % (and other bounds with BOUNDS=…). Prints the bench's rows, the
+# value − 32768), at 1 % of each raster's range (other bounds with BOUNDS=…, e.g. "1%,10"
+# for a fixed 10 m too: the same detail per area at every size). Prints the bench's rows, the
 # growth exponents (least squares of log time on log samples) and, per raster, the CLI's
 # peak memory (/usr/bin/time -v) in bytes per sample for encode and decode.
 # Usage: benches/sites_scaling.sh PYTHON_WITH_NUMPY [RUNS]
@@ -21,7 +22,8 @@ src, out = sys.argv[1], sys.argv[2]
 a = np.fromfile(src, "<f4").reshape(2400, 2400)
 meta = json.load(open(src[:-4] + ".json"))
 for n in (300, 600, 1200, 2400):
-    a[:n, :n].astype("<f4").tofile(f"{out}/istria_{n}.f32")
+    o = (2400 - n) // 2
+    a[o:o + n, o:o + n].astype("<f4").tofile(f"{out}/istria_{n}.f32")
     json.dump({"width": n, "height": n, "nodata": meta["nodata"], "source_dtype": "float32"},
               open(f"{out}/istria_{n}.json", "w"))
 PY

@@ -43,6 +43,8 @@ pub struct Scratch {
     cav_circles: Vec<Circle>,
     out_circles: Vec<Circle>,
     cav_ao: Vec<([i64; 2], [f64; 2])>,
+    /// Hull edges of the cavity's triangles (a sample on one takes the edge's interpolant).
+    hull_edges: Vec<(u32, u32)>,
     vpos: Vec<[i64; 2]>,
     vh: Vec<f64>,
     fan_start: Vec<u32>,
@@ -351,6 +353,59 @@ impl Surface {
         num / den
     }
 
+    /// The surface's value at `p` (`None` outside the hull), for a sequence of nearby points
+    /// on one scratch: from the last point's cavity when p lies in one of its circles (see
+    /// `eval_near`), else by a walk from `hint`. `hint` becomes a triangle near p.
+    pub fn eval_seq(&self, p: [i64; 2], hint: &mut Option<u32>, s: &mut Scratch) -> Option<f64> {
+        if !self.tri.is_2d() {
+            return self.eval_collinear(p);
+        }
+        if let Some(v) = self.eval_near(p, hint, s) {
+            return Some(v);
+        }
+        match self.tri.locate(p, *hint) {
+            Location::Vertex(v) => Some(self.heights[v as usize]),
+            Location::Triangle(t) => {
+                *hint = Some(t);
+                Some(self.eval_in(p, t, s))
+            }
+            Location::Outside => None,
+        }
+    }
+
+    /// Evaluate at `p` from the cavity structure in `s` when p lies in one of its circles:
+    /// the same cavity (reused), or a new one flooded from a triangle of the old one whose
+    /// circle holds p (no point location needed: p is then no site, and a hull edge through
+    /// p belongs to a cavity triangle). `None` when p is in none of them (locate it then).
+    /// `hint` becomes a triangle near p.
+    fn eval_near(&self, p: [i64; 2], hint: &mut Option<u32>, s: &mut Scratch) -> Option<f64> {
+        if s.generation != self.generation {
+            return None;
+        }
+        let mut seed = None;
+        let mut all = true;
+        for c in &s.cav_circles {
+            if self.inside(c, p) {
+                seed.get_or_insert(c.t);
+            } else {
+                all = false;
+            }
+        }
+        let seed = seed?;
+        let same = all && !s.out_circles.iter().any(|c| self.inside(c, p));
+        if !same && !self.build_cavity(p, seed, s) {
+            return None;
+        }
+        *hint = Some(seed);
+        for &(a, b) in &s.hull_edges {
+            if orient(self.tri.point(a), self.tri.point(b), p) == 0 {
+                // On the line of a chord of a circle strictly holding p: on the open edge.
+                return Some(self.lerp_edge(a, b, p));
+            }
+        }
+        Some(self.weights(p, s))
+    }
+
     /// Find the cavity of `p` (flood fill from `t`), walk its boundary and lay out the cycle
     /// in the spec's order (from the lowest site id, each vertex's cavity fan from the
     /// triangle holding its outgoing edge); `false` if the walk did not close (never on a
@@ -361,6 +416,7 @@ impl Surface {
         let stamp = s.next_stamp(tri.num_triangle_slots());
         s.cavity.clear();
         s.out_circles.clear();
+        s.hull_edges.clear();
         s.stack.clear();
         s.mark[t as usize] = stamp;
         s.slot[t as usize] = 0;
@@ -374,6 +430,10 @@ impl Surface {
                 let nbu = nb as usize;
                 if s.mark[nbu] == stamp {
                     continue;
+                }
+                if tri.tri(nb).is_ghost() {
+                    let v = tri.tri(c).v;
+                    s.hull_edges.push((v[(k + 1) % 3], v[(k + 2) % 3]));
                 }
                 if s.seen[nbu] != stamp {
                     if !tri.tri(nb).is_ghost() {
@@ -679,16 +739,10 @@ impl Surface {
                 if !want(x, y) {
                     continue;
                 }
-                let p = [x, y];
-                match self.tri.locate(p, hint) {
-                    Location::Vertex(v) => *o = self.heights[v as usize],
-                    Location::Triangle(t) => {
-                        first.get_or_insert(t);
-                        hint = Some(t);
-                        *o = self.eval_in(p, t, &mut s);
-                    }
-                    Location::Outside => {}
+                if let Some(v) = self.eval_seq([x, y], &mut hint, &mut s) {
+                    *o = v;
                 }
+                first = first.or(hint);
             }
             row_hint = first.or(row_hint);
         }
@@ -922,6 +976,30 @@ mod tests {
                 let a = s.eval_in(p, t, &mut fast);
                 let b = s.eval_in_reference(p, t, &mut refs);
                 assert_eq!(a.to_bits(), b.to_bits(), "{p:?}: {a} vs {b}");
+            }
+        }
+        // The grid evaluators (row order, cavities reused and flooded from the last one):
+        // whole grid, windows and lattices of several steps, each point against the
+        // reference (or the site's height, or the hull edge's interpolant).
+        let reference = |p: [i64; 2], refs: &mut Scratch| match s.tri.locate(p, None) {
+            Location::Triangle(t) => Some(s.eval_in_reference(p, t, refs)),
+            Location::Vertex(v) => Some(s.heights[v as usize]),
+            Location::Outside => None,
+        };
+        for (x0, y0, step) in [(0, 0, 1), (3, 2, 1), (0, 0, 2), (1, 1, 3)] {
+            let (lw, lh) = (((w - x0) / step + 1) as usize, ((h - y0) / step + 1) as usize);
+            let out = s.eval_lattice(x0, y0, lw, lh, step, &|x, y| (x * 7 + y) % 11 != 0);
+            for j in 0..lh {
+                for i in 0..lw {
+                    let p = [x0 + i as i64 * step, y0 + j as i64 * step];
+                    let v = out[j * lw + i];
+                    if (p[0] * 7 + p[1]) % 11 == 0 {
+                        assert!(v.is_nan());
+                        continue;
+                    }
+                    let r = reference(p, &mut refs).unwrap_or(f64::NAN);
+                    assert_eq!(v.to_bits(), r.to_bits(), "{p:?} step {step}: {v} vs {r}");
+                }
             }
         }
     }

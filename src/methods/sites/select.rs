@@ -271,24 +271,23 @@ impl State<'_> {
             return;
         }
         let w = self.s.width;
-        let mut hint = self.block_hint[b];
+        let mut list = list;
+        // Row order: neighbours share cavities (`Surface::eval_seq`).
+        list.sort_unstable();
+        let mut hint = Some(self.block_hint[b]).filter(|&h| h != u32::MAX);
         for &i in &list {
             let i = i as usize;
             self.dirty[i] = false;
             let v = self
                 .surf
-                .eval(
-                    [(i % w) as i64, (i / w) as i64],
-                    &mut hint,
-                    &mut self.scratch,
-                )
+                .eval_seq([(i % w) as i64, (i / w) as i64], &mut hint, &mut self.scratch)
                 .expect("valid samples lie in the hull");
             self.evals += 1;
             let e = (v - self.s.values[i]).abs();
             self.sum_sq += e * e - self.err[i] * self.err[i];
             self.err[i] = e;
         }
-        self.block_hint[b] = hint;
+        self.block_hint[b] = hint.unwrap_or(u32::MAX);
         self.block_dirty[b] = list;
         self.block_dirty[b].clear();
         self.rescan_block(b);
