@@ -497,8 +497,8 @@ impl Surface {
         s.vh.clear();
         s.fan.clear();
         s.fan_start.clear();
-        for i in 0..kk {
-            let (v, from, to) = s.walk[(first + i) % kk];
+        for i in (first..kk).chain(0..first) {
+            let (v, from, to) = s.walk[i];
             s.vpos.push(tri.point(v));
             s.vh.push(self.heights[v as usize]);
             s.fan_start.push(s.fan.len() as u32);
@@ -987,7 +987,10 @@ mod tests {
             Location::Outside => None,
         };
         for (x0, y0, step) in [(0, 0, 1), (3, 2, 1), (0, 0, 2), (1, 1, 3)] {
-            let (lw, lh) = (((w - x0) / step + 1) as usize, ((h - y0) / step + 1) as usize);
+            let (lw, lh) = (
+                ((w - x0) / step + 1) as usize,
+                ((h - y0) / step + 1) as usize,
+            );
             let out = s.eval_lattice(x0, y0, lw, lh, step, &|x, y| (x * 7 + y) % 11 != 0);
             for j in 0..lh {
                 for i in 0..lw {

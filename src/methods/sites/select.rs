@@ -394,6 +394,7 @@ pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> R
         st.rescan_block(b);
     }
     let first_max = st.global_max().max(f64::MIN_POSITIVE);
+    let debug = std::env::var_os("VTZ_DEBUG_SELECT").is_some();
     let target_sites = p.max_sites.unwrap_or(usize::MAX).min(valid_count);
     let mut last_report = 0usize;
     loop {
@@ -448,6 +449,9 @@ pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> R
             .insert_near(q, height_of(code, p.step, p.offset), Some(hint))?;
         st.is_site[i] = true;
         sel.sites.push((i as u32, code));
+        if debug && sel.sites.len().is_power_of_two() {
+            eprintln!("select: {} sites, {} evaluations", sel.sites.len(), st.evals);
+        }
         st.update_after_insert();
         // The new site's own block first: it holds the largest changes.
         let bl = st.block_of(i);
