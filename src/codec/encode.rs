@@ -95,6 +95,12 @@ pub(crate) fn encode_once(
         }
         None => (raster, raster),
     };
+    let flat_payload = flat
+        .as_deref()
+        .map(|f| container::flat::encode(f, source.width, source.mask.as_deref()));
+    // Per-sample values only for a method that reads them (8 bytes per sample).
+    let keep = opts.methods.is_empty() || opts.methods.iter().any(|m| m.0.uses_flat_values());
+    let flat = flat.filter(|_| keep);
     let flat = flat.as_deref();
     let mut cands: Vec<Candidate> = Vec::new();
     let mut skipped: Vec<(Method, String)> = Vec::new();
@@ -178,11 +184,11 @@ pub(crate) fn encode_once(
             });
         }
     }
-    if let Some(f) = flat {
+    if let Some(payload) = flat_payload {
         sections.push(Section {
             kind: SectionKind::FLAT,
             flags: SF_REQUIRED,
-            payload: container::flat::encode(f, source.width, source.mask.as_deref()),
+            payload,
         });
     }
     header.primary = (sections.len() + primary) as u16;

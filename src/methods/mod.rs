@@ -221,6 +221,11 @@ pub(crate) trait Representation: Sync {
     fn has_stats(&self) -> bool {
         false
     }
+    /// Whether its encoder reads the flat regions' values (`EncodeJob::flat`); the codec
+    /// keeps them per sample only for such a method (they cost 8 bytes per sample).
+    fn uses_flat_values(&self) -> bool {
+        false
+    }
     /// Whether its payloads store sites ([`Representation::sites`]).
     fn stores_sites(&self) -> bool {
         false

@@ -11,6 +11,9 @@ use crate::methods::{
 pub(crate) struct Residual;
 
 impl Representation for Residual {
+    fn uses_flat_values(&self) -> bool {
+        true
+    }
     fn id(&self) -> &'static Identity {
         &Identity {
             name: "residual",

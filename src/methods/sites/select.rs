@@ -390,6 +390,7 @@ pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> R
             st.sum_sq += st.err[i] * st.err[i];
         }
     }
+    drop(vals);
     for b in 0..bw * bh {
         st.rescan_block(b);
     }
