@@ -15,7 +15,7 @@ tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 cd "$here"
 cargo build --release -q --bin vtz
 bench=$(cargo bench --bench sites_speed --no-run 2>&1 | sed -n 's/.*(\(.*sites_speed-[0-9a-f]*\)).*/\1/p' | tail -1)
-vtz=$here/target/release/vtz
+vtz=${CARGO_TARGET_DIR:-$here/target}/release/vtz
 "$py" - "$corpus/srtm1_N45E013_istria_crop2400.f32" "$tmp" <<'PY'
 import json, sys, numpy as np
 src, out = sys.argv[1], sys.argv[2]

@@ -118,6 +118,7 @@ pub struct Triangulation {
     mark: Vec<u32>,
     stamp: u32,
     boundary: Vec<(u32, u32, u32)>,
+    made: Vec<(u32, u32, u32)>,
     /// Triangles created by the last insertion.
     created: Vec<u32>,
 }
@@ -193,15 +194,13 @@ impl Triangulation {
             .collect();
         let key = |t: u32| {
             let tr = &self.tris[t as usize];
-            let real: Vec<[i64; 2]> =
-                tr.v.iter()
-                    .filter(|&&v| v != GHOST)
-                    .map(|&v| self.pts[v as usize])
-                    .collect();
-            let n = real.len() as i64;
-            let cy = real.iter().map(|p| p[1]).sum::<i64>() / n;
-            let cx = real.iter().map(|p| p[0]).sum::<i64>() / n;
-            (tr.is_ghost(), cy.div_euclid(16), cx, t)
+            let (mut sx, mut sy, mut n) = (0i64, 0i64, 0i64);
+            for &v in tr.v.iter().filter(|&&v| v != GHOST) {
+                let p = self.pts[v as usize];
+                (sx, sy, n) = (sx + p[0], sy + p[1], n + 1);
+            }
+            let n = n.max(1);
+            (tr.is_ghost(), (sy / n).div_euclid(16), sx / n, t)
         };
         let mut order: Vec<((bool, i64, i64, u32), u32)> =
             live.iter().map(|&t| (key(t), t)).collect();
@@ -439,18 +438,15 @@ impl Triangulation {
         }
         // Edges of the cavity that are in the cavity on both sides are gone; boundary
         // edges whose outer triangle joined the cavity later are interior too.
-        let boundary: Vec<(u32, u32, u32)> = self
-            .boundary
-            .iter()
-            .copied()
-            .filter(|&(_, _, nb)| self.mark[nb as usize] != stamp)
-            .collect();
+        let mut boundary = std::mem::take(&mut self.boundary);
+        boundary.retain(|&(_, _, nb)| self.mark[nb as usize] != stamp);
         for &t in &self.cavity {
             self.alive[t as usize] = false;
             self.free.push(t);
         }
         // New triangles (a, b, p), normalised so a ghost vertex is last.
-        let mut made: Vec<(u32, u32, u32)> = Vec::with_capacity(boundary.len());
+        let mut made = std::mem::take(&mut self.made);
+        made.clear();
         for &(a, b, outer) in &boundary {
             let v = if a == GHOST {
                 [b, id, GHOST]
@@ -490,6 +486,8 @@ impl Triangulation {
                 self.last = t;
             }
         }
+        self.boundary = boundary;
+        self.made = made;
     }
 }
 

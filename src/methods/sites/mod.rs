@@ -97,13 +97,23 @@ struct SiteStream {
     sc: Scratch,
     prev_code: i64,
     hint: u32,
+    /// A triangle last found in each cell of a coarse grid over the raster, to start point
+    /// location near the next site (consecutive sites of a level can be far apart).
+    cells: Vec<u32>,
+    cells_w: usize,
     step: f64,
     offset: f64,
 }
 
+/// Side of the coarse grid's cells ([`SiteStream`]), in samples.
+const CELL: usize = 32;
+
 impl SiteStream {
-    fn new(step: f64, offset: f64) -> SiteStream {
+    fn new(step: f64, offset: f64, (width, height): (usize, usize)) -> SiteStream {
+        let cells_w = width.div_ceil(CELL).max(1);
         SiteStream {
+            cells: vec![u32::MAX; cells_w * height.div_ceil(CELL).max(1)],
+            cells_w,
             pos: UIntModel::new(),
             height: IntModel::new(),
             surf: Surface::new(),
@@ -117,7 +127,15 @@ impl SiteStream {
 
     /// The predicted height code at `p`: the surface there, else the previous code.
     fn predict(&mut self, p: [i64; 2]) -> i64 {
-        match self.surf.eval(p, &mut self.hint, &mut self.sc) {
+        let cell = (p[1] as usize / CELL) * self.cells_w + p[0] as usize / CELL;
+        if let Some(&t) = self.cells.get(cell).filter(|&&t| t != u32::MAX) {
+            self.hint = t;
+        }
+        let v = self.surf.eval(p, &mut self.hint, &mut self.sc);
+        if let Some(c) = self.cells.get_mut(cell) {
+            *c = self.hint;
+        }
+        match v {
             Some(v) => code_of(v, self.step, self.offset),
             None => self.prev_code,
         }
@@ -150,7 +168,14 @@ fn write_levels(
     let total: usize = levels.iter().map(|l| l.len()).sum();
     out.put_u32(total as u32);
     out.put_u32(levels.len() as u32);
-    let mut st = SiteStream::new(step, offset);
+    let rows = levels
+        .iter()
+        .flatten()
+        .map(|s| s.0 as usize / width.max(1) + 1)
+        .max()
+        .unwrap_or(1);
+    let dims = (width, rows);
+    let mut st = SiteStream::new(step, offset, dims);
     let mut streams = Vec::new();
     for level in levels {
         let mut enc = Encoder::new();
@@ -254,7 +279,8 @@ pub fn decode_sites(
         }
     }
     let width = header.width as usize;
-    let mut st = SiteStream::new(step, offset);
+    let dims = (width, header.height as usize);
+    let mut st = SiteStream::new(step, offset, dims);
     let mut sites = Vec::new();
     let mut levels = Vec::new();
     let want_sites = max_sites.unwrap_or(usize::MAX).max(first);
