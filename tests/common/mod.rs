@@ -94,7 +94,9 @@ pub fn terrain(kind: Kind, w: usize, h: usize, seed: u64, holes: bool, st: Sampl
             data.push(match st {
                 SampleType::F32 => v as f32 as f64,
                 SampleType::F64 => v,
-                _ => v.round(),
+                // Integer codes have no −0 (rounding −0.3 gives −0.0, which an integer
+                // raster cannot hold: its decode is 0).
+                _ => v.round() + 0.0,
             });
         }
     }
