@@ -223,6 +223,9 @@ impl Surface {
         if !self.tri.is_2d() {
             return;
         }
+        // Free the old per-triangle data first: on dense site sets it is the largest part of
+        // the surface.
+        self.info = Vec::new();
         self.tri.compact_spatially();
         let slots = self.tri.num_triangle_slots();
         self.info = (0..slots as u32)

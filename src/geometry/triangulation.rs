@@ -192,7 +192,9 @@ impl Triangulation {
         let live: Vec<u32> = (0..self.tris.len() as u32)
             .filter(|&t| self.alive[t as usize])
             .collect();
-        let key = |t: u32| {
+        // Sort key: ghosts last, then strips of 16 rows, then column (all coordinates are
+        // within ±MAX_COORD = ±2^24, so each part fits its bits after an offset).
+        let key = |t: u32| -> u64 {
             let tr = &self.tris[t as usize];
             let (mut sx, mut sy, mut n) = (0i64, 0i64, 0i64);
             for &v in tr.v.iter().filter(|&&v| v != GHOST) {
@@ -200,10 +202,12 @@ impl Triangulation {
                 (sx, sy, n) = (sx + p[0], sy + p[1], n + 1);
             }
             let n = n.max(1);
-            (tr.is_ghost(), (sy / n).div_euclid(16), sx / n, t)
+            let strip = ((sy / n).div_euclid(16) + (1 << 21)) as u64;
+            let col = (sx / n + (1 << 25)) as u64;
+            (u64::from(tr.is_ghost()) << 62) | (strip << 32) | col
         };
-        let mut order: Vec<((bool, i64, i64, u32), u32)> =
-            live.iter().map(|&t| (key(t), t)).collect();
+        let mut order: Vec<(u64, u32)> = live.iter().map(|&t| (key(t), t)).collect();
+        drop(live);
         order.sort_unstable();
         let mut new_id = vec![NONE; self.tris.len()];
         for (i, &(_, t)) in order.iter().enumerate() {
