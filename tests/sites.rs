@@ -230,3 +230,46 @@ fn scaled_decoding_samples_the_same_surface() {
     );
     assert!(Scale::parse("0").is_err() && Scale::parse("x").is_err());
 }
+
+/// A raster of several 64-row chunks (the unit threads take from a shared queue, in no
+/// fixed order): every thread count and windows cut across chunks decode to the same bits.
+#[test]
+fn decode_is_the_same_for_any_thread_count_and_window() {
+    let r = terrain(Kind::Fbm, 300, 290, 21, true, SampleType::F32);
+    let bytes = vtz::encode(&r, &sites_opts(2.0)).unwrap();
+    let one = vtz::decode_with(&bytes, &decode_opts(|o| o.threads = 1)).unwrap();
+    check_bound(&r, &one, 2.0);
+    for threads in [2, 3, 4, 7] {
+        let t = vtz::decode_with(&bytes, &decode_opts(|o| o.threads = threads)).unwrap();
+        assert_eq!(bits(&one), bits(&t), "{threads} threads");
+    }
+    let mut rng = Rng(5);
+    for _ in 0..6 {
+        let (x, y) = (rng.below(250) as usize, rng.below(200) as usize);
+        let (w, h) = (
+            1 + rng.below(300 - x as u64) as usize,
+            1 + rng.below(290 - y as u64) as usize,
+        );
+        let win = Window {
+            x,
+            y,
+            width: w,
+            height: h,
+        };
+        let part = vtz::decode_with(
+            &bytes,
+            &decode_opts(|o| {
+                o.window = Some(win);
+                o.threads = 3;
+            }),
+        )
+        .unwrap();
+        for yy in 0..h {
+            for xx in 0..w {
+                let a = part.data[yy * w + xx].to_bits();
+                let b = one.data[(y + yy) * 300 + x + xx].to_bits();
+                assert_eq!(a, b, "window {win:?} at ({xx}, {yy})");
+            }
+        }
+    }
+}
