@@ -69,7 +69,7 @@ impl Surface {
             && s.cav_circles.iter().all(|c| self.inside(c, p))
             && !s.out_circles.iter().any(|c| self.inside(c, p));
         if !same && !self.build_cavity(p, t, s) {
-            return self.eval_in_reference_free(p, t, s);
+            return self.eval_by_reference(p, t, s);
         }
         self.weights(p, s)
     }

@@ -302,8 +302,8 @@ impl Surface {
     }
 
     /// Evaluate the lattice points `(x0 + i·step, y0 + j·step)`, `i < w`, `j < h`, for which
-    /// `want` holds, by rasterizing each triangle once. Points outside the sites' hull (and
-    /// unwanted ones) are NaN. Each value is the same as [`eval`](Self::eval) gives.
+    /// `want` holds, row by row ([`eval_seq`](Self::eval_seq)). Points outside the sites'
+    /// hull (and unwanted ones) are NaN. Each value is the same as [`eval`](Self::eval) gives.
     pub fn eval_lattice(
         &self,
         x0: i64,

@@ -1,5 +1,7 @@
 //! The spec's evaluation of Sibson's interpolant, operation by operation and nothing reused:
-//! what every fast path must match bit for bit (and their fallback).
+//! what every fast path must match bit for bit (and their fallback). Its cavity flood and
+//! boundary cycle repeat `cavity`'s work in the spec's plainest form on purpose: sharing
+//! the fast code would make the tests compare it with itself.
 
 use super::{Scratch, Surface, cc0, sub};
 use crate::geometry::triangulation::orient;
@@ -17,7 +19,7 @@ fn polygon_area(poly: &[[f64; 2]]) -> f64 {
 
 impl Surface {
     /// The reference evaluation (always compiled for the fallback of [`eval_in`]).
-    pub(super) fn eval_in_reference_free(&self, p: [i64; 2], t: u32, s: &mut Scratch) -> f64 {
+    pub(super) fn eval_by_reference(&self, p: [i64; 2], t: u32, s: &mut Scratch) -> f64 {
         s.generation = 0;
         self.reference(p, t, s)
     }
@@ -26,7 +28,7 @@ impl Surface {
     /// reference that [`eval_in`](Self::eval_in) must match bit for bit (tests compare them).
     #[cfg(test)]
     pub fn eval_in_reference(&self, p: [i64; 2], t: u32, s: &mut Scratch) -> f64 {
-        self.eval_in_reference_free(p, t, s)
+        self.eval_by_reference(p, t, s)
     }
 
     fn reference(&self, p: [i64; 2], t: u32, s: &mut Scratch) -> f64 {

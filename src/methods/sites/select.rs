@@ -141,7 +141,6 @@ struct State<'a> {
     dirty_blocks: Vec<u32>,
     evals: u64,
     scanned: u64,
-    marked: u64,
     /// A triangle near each block (where its last sample was found), to start walks from.
     block_hint: Vec<u32>,
 }
@@ -252,7 +251,6 @@ impl State<'_> {
                                 continue;
                             }
                             self.dirty[i] = true;
-                            self.marked += 1;
                             if self.block_dirty[bl].is_empty() {
                                 self.dirty_blocks.push(bl as u32);
                             }
@@ -374,7 +372,6 @@ pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> R
         dirty_blocks: Vec::new(),
         evals: 0,
         scanned: 0,
-        marked: 0,
         block_hint: vec![u32::MAX; bw * bh],
     };
     // Initial errors: evaluate the hull surface everywhere.
@@ -471,10 +468,9 @@ pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> R
     }
     if std::env::var_os("VTZ_DEBUG_SELECT").is_some() {
         eprintln!(
-            "select: {} sites, {} scanned, {} marked, {} evaluations ({:.1} per sample)",
+            "select: {} sites, {} samples visited to mark stale ones, {} evaluations ({:.1} per sample)",
             sel.sites.len(),
             st.scanned,
-            st.marked,
             st.evals,
             st.evals as f64 / valid_count as f64
         );
