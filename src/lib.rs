@@ -43,9 +43,10 @@ pub mod viz;
 mod testutil;
 
 pub use codec::{
-    DecodeOptions, Decoder, EncodeOptions, EncodeReport, Encoder, FileInfo, Sample, Scale,
-    SectionChoice, SectionInfo, Verified, decode, decode_from, decode_with, encode,
-    encode_progress, encode_report, info, read_path, write_path,
+    DEFAULT_TILE, DecodeOptions, Decoder, EncodeOptions, EncodeReport, Encoder, FileInfo, Sample,
+    Scale, SectionChoice, SectionInfo, TileInfo, TilesInfo, Verified, decode, decode_from,
+    decode_with, encode, encode_progress, encode_report, encode_stream, info, read_path, tile_count,
+    write_path,
 };
 pub use container::Limits;
 pub use error::{Error, Result};
@@ -53,7 +54,9 @@ pub use methods::{
     DEFAULT_EFFORT, FisOptions, HaarOptions, Method, MethodParams, Norm, SibsonOptions, Site,
     StatValue, Stats,
 };
-pub use model::{GeoKeys, Georef, Raster, RasterType, SampleType, ValueMapping, Window};
+pub use model::{
+    GeoKeys, Georef, InMemory, Raster, RasterType, RowSource, SampleType, ValueMapping, Window,
+};
 pub use quant::ErrorBound;
 
 /// Internals for the crate's own tests, benches and examples (the `internals` feature):

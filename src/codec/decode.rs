@@ -188,7 +188,7 @@ pub(crate) fn method_mask(
 
 /// The size of a `w × h` grid resampled by `s` (sample (i, j) sits at source position
 /// (i·den/num, j·den/num), both ends included).
-fn scaled_size(w: usize, h: usize, s: Scale) -> (u64, u64) {
+pub(crate) fn scaled_size(w: usize, h: usize, s: Scale) -> (u64, u64) {
     let f = |n: usize| (n as u64 - 1) * s.num.max(1) as u64 / s.den.max(1) as u64 + 1;
     (f(w), f(h))
 }

@@ -71,6 +71,16 @@ pub(crate) fn encode_once(
     opts: &EncodeOptions,
     progress: &mut dyn FnMut(f64),
 ) -> Result<(Vec<u8>, EncodeReport)> {
+    let (header, sections, report) = encode_parts(raster, opts, progress)?;
+    Ok((container::write(&header, &sections), report))
+}
+
+/// [`encode_once`] before framing: the header (its `primary` set) and the sections.
+pub(crate) fn encode_parts(
+    raster: &Raster,
+    opts: &EncodeOptions,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(Header, Vec<Section>, EncodeReport)> {
     raster.validate()?;
     if let Some(k) = opts.effort.filter(|k| !(1..=9).contains(k)) {
         return Err(Error::invalid(format!("effort {k} is not in 1..=9")));
@@ -224,7 +234,7 @@ pub(crate) fn encode_once(
             payload: xml.as_bytes().to_vec(),
         });
     }
-    Ok((container::write(&header, &sections), report))
+    Ok((header, sections, report))
 }
 
 /// Rasters up to this many samples get every method `best` may try in full; larger ones a

@@ -6,17 +6,20 @@ mod decode;
 mod encode;
 mod options;
 mod rate;
+mod tiles;
 mod verify;
 
 pub use encode::EncodeReport;
 pub use options::{DecodeOptions, EncodeOptions, Scale, SectionChoice};
+pub use tiles::{DEFAULT_TILE, tile_count};
 pub use verify::Verified;
 
+use crate::container::tiled::{TiledReader, VERSION_TILED, peek_version};
 use crate::container::{ContainerReader, Limits, SF_REQUIRED};
 use crate::error::{Error, Result};
 use crate::formats::{self, Format, ReadOptions, WriteOptions};
 use crate::methods::{self, DecodeJob, Method, Site, Stats};
-use crate::model::{Georef, Raster, SampleType, ValueMapping, Window};
+use crate::model::{Georef, InMemory, Raster, RowSource, SampleType, ValueMapping, Window};
 use crate::quant::ErrorBound;
 use std::io::{Cursor, Read, Seek};
 use std::path::Path;
@@ -52,14 +55,45 @@ pub fn encode_progress(
             progress(f);
         }
     };
-    let out = match opts.target_bytes {
-        Some(t) => rate::encode_to_size(raster, opts, t, &mut mono),
-        None => encode::encode_once(raster, opts, &mut mono),
+    let out = if tiles::tiled(raster.width, raster.height, opts) {
+        tiles::encode_tiled(
+            &mut InMemory(raster),
+            opts,
+            Cursor::new(Vec::new()),
+            &mut mono,
+        )
+        .map(|(c, r)| (c.into_inner(), r))
+    } else {
+        match opts.target_bytes {
+            Some(t) => rate::encode_to_size(raster, opts, t, &mut mono),
+            None => encode::encode_once(raster, opts, &mut mono),
+        }
     };
     if out.is_ok() {
         mono(1.0);
     }
     out
+}
+
+/// Encode a raster read band by band (a file larger than memory: see
+/// [`crate::formats::open_source`]) into `out`: a raster larger than the tile size
+/// ([`EncodeOptions::tile`]) is encoded tile by tile on all cores and written as tiles
+/// finish, holding only the tiles in flight; a smaller one is read whole and encoded as by
+/// [`encode_report`]. `progress` gets the fraction done.
+pub fn encode_stream<W: std::io::Write + Seek>(
+    src: &mut dyn RowSource,
+    opts: &EncodeOptions,
+    mut out: W,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(W, EncodeReport)> {
+    if tiles::tiled(src.width(), src.height(), opts) {
+        return tiles::encode_tiled(src, opts, out, progress);
+    }
+    let r = src.band(0, src.height())?;
+    let (bytes, rep) = encode_progress(&r, opts, progress)?;
+    out.write_all(&bytes)
+        .map_err(|e| Error::io("writing the file", e))?;
+    Ok((out, rep))
 }
 
 /// Decode `.vtz` bytes into a raster (the primary section).
@@ -75,8 +109,9 @@ pub fn decode_with(bytes: &[u8], opts: &DecodeOptions) -> Result<Raster> {
 /// Decode a `.vtz` from a reader: only the header, the directory and the sections the
 /// decode needs are read.
 pub fn decode_from<R: Read + Seek>(reader: R, opts: &DecodeOptions) -> Result<Raster> {
-    let mut rd = decode::open(reader, opts.limits)?;
-    decode::decode_reader(&mut rd, opts, &|_| {})
+    let mut d = Decoder::with_limits(reader, opts.limits)?;
+    d.options(opts.clone());
+    d.decode()
 }
 
 /// Read a raster file of any format vtz knows, `.vtz` included (decoded).
@@ -207,8 +242,48 @@ pub struct FileInfo {
     pub georef: Option<Georef>,
     /// The index of the primary section.
     pub primary: usize,
-    /// The section directory, in file order.
+    /// The section directory, in file order (of a tiled file: its global sections).
     pub sections: Vec<SectionInfo>,
+    /// A tiled file's grid and index (container version 2); `None` for an untiled file.
+    pub tiles: Option<TilesInfo>,
+}
+
+/// A tiled file's grid and index.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct TilesInfo {
+    /// Tile width in samples (the last column may be narrower).
+    pub tile_width: u32,
+    /// Tile height in samples (the last row may be shorter).
+    pub tile_height: u32,
+    /// Tiles per row.
+    pub cols: u32,
+    /// Rows of tiles.
+    pub rows: u32,
+    /// The index, in tile order.
+    pub tiles: Vec<TileInfo>,
+}
+
+/// One tile of a tiled file's index.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct TileInfo {
+    /// Its number (row-major).
+    pub index: usize,
+    /// The samples it covers.
+    pub window: Window,
+    /// Byte offset of its block.
+    pub offset: u64,
+    /// Bytes of its block.
+    pub bytes: u64,
+    /// The name of its primary section's type (its method).
+    pub method: String,
+    /// Valid samples.
+    pub valid: u64,
+    /// (min, max) of its valid source samples.
+    pub range: Option<(f64, f64)>,
+    /// The max error its encoder achieved (0 = lossless).
+    pub max_error: f64,
 }
 
 impl FileInfo {
@@ -255,11 +330,19 @@ pub struct SectionInfo {
 /// # Ok::<(), vtz::Error>(())
 /// ```
 pub struct Decoder<R> {
-    rd: ContainerReader<R>,
+    rd: Opened<R>,
     info: FileInfo,
     opts: DecodeOptions,
     /// The validity mask, once read for statistics or sites.
     mask: Option<Option<Vec<bool>>>,
+    /// Tiles the last decode skipped as corrupt (`DecodeOptions::skip_corrupt`).
+    skipped: Vec<String>,
+}
+
+/// An opened file: untiled (version 1) or tiled (version 2).
+enum Opened<R> {
+    Untiled(ContainerReader<R>),
+    Tiled(TiledReader<R>),
 }
 
 impl<R: Read + Seek> Decoder<R> {
@@ -276,10 +359,17 @@ impl<R: Read + Seek> Decoder<R> {
         reader
             .seek(std::io::SeekFrom::Start(0))
             .map_err(|e| Error::io("seeking", e))?;
-        let rd = decode::open(reader, limits)?;
-        let h = rd.header().clone();
-        let sections = rd
-            .entries()
+        let tiled = peek_version(&mut reader)? == VERSION_TILED;
+        let rd = if tiled {
+            Opened::Tiled(tiles::open(reader, limits)?)
+        } else {
+            Opened::Untiled(decode::open(reader, limits)?)
+        };
+        let (h, entries, primary) = match &rd {
+            Opened::Untiled(r) => (r.header().clone(), r.entries().to_vec(), Some(r.header().primary as usize)),
+            Opened::Tiled(r) => (r.header().clone(), r.global().to_vec(), None),
+        };
+        let sections = entries
             .iter()
             .enumerate()
             .map(|(i, e)| SectionInfo {
@@ -288,11 +378,39 @@ impl<R: Read + Seek> Decoder<R> {
                 code: e.kind.code(),
                 method: methods::by_section(e.kind).map(Method),
                 required: e.flags & SF_REQUIRED != 0,
-                primary: i == h.primary as usize,
+                primary: Some(i) == primary,
                 offset: e.offset,
                 bytes: e.length,
             })
             .collect();
+        let tiles = match &rd {
+            Opened::Untiled(_) => None,
+            Opened::Tiled(r) => {
+                let g = r.grid();
+                Some(TilesInfo {
+                    tile_width: g.tile_w,
+                    tile_height: g.tile_h,
+                    cols: g.cols(),
+                    rows: g.rows(),
+                    tiles: r
+                        .tiles()
+                        .iter()
+                        .enumerate()
+                        .map(|(k, t)| TileInfo {
+                            index: k,
+                            window: g.rect(k),
+                            offset: t.offset,
+                            bytes: t.length,
+                            method: decode::kind_names(t.kind)
+                                .map_or_else(|| format!("unknown-{}", t.kind.code()), str::to_string),
+                            valid: t.valid,
+                            range: t.range,
+                            max_error: t.max_error,
+                        })
+                        .collect(),
+                })
+            }
+        };
         let info = FileInfo {
             file_bytes,
             width: h.width,
@@ -302,8 +420,9 @@ impl<R: Read + Seek> Decoder<R> {
             nodata: h.nodata,
             range: h.range,
             georef: h.georef.clone(),
-            primary: h.primary as usize,
+            primary: primary.unwrap_or(0),
             sections,
+            tiles,
         };
         let opts = DecodeOptions {
             limits,
@@ -314,6 +433,7 @@ impl<R: Read + Seek> Decoder<R> {
             info,
             opts,
             mask: None,
+            skipped: Vec::new(),
         })
     }
 
@@ -343,24 +463,63 @@ impl<R: Read + Seek> Decoder<R> {
 
     /// Decode into a raster.
     pub fn decode(&mut self) -> Result<Raster> {
-        decode::decode_reader(&mut self.rd, &self.opts, &|_| {})
+        self.decode_progress(&|_| {})
+    }
+
+    /// The tiles the last decode wrote as nodata because they were corrupt
+    /// ([`DecodeOptions::skip_corrupt`]), each with its error.
+    pub fn skipped(&self) -> &[String] {
+        &self.skipped
     }
 
     /// Check the whole file: every checksum, every section decoded in full, each decode
     /// against the mask, the header's value range widened by the section's stored max
-    /// error, and the surfaces against one another. The first problem is the error
-    /// ([`Error::Corrupt`] for what the file gets wrong).
+    /// error, and the surfaces against one another (in a tiled file, tile by tile, each
+    /// against its index entry). The first problem is the error ([`Error::Corrupt`] for
+    /// what the file gets wrong).
     pub fn verify(&mut self) -> Result<Verified> {
-        verify::verify(&mut self.rd)
+        match &mut self.rd {
+            Opened::Untiled(rd) => verify::verify(rd),
+            Opened::Tiled(rd) => verify::verify_tiled(rd),
+        }
     }
 
     /// [`Decoder::decode`] with a progress callback: the fraction done, 0..1, never
     /// decreasing (it may be called from several threads).
     pub fn decode_progress(&mut self, progress: &(dyn Fn(f64) + Sync)) -> Result<Raster> {
         progress(0.0);
-        let r = decode::decode_reader(&mut self.rd, &self.opts, progress)?;
+        let r = match &mut self.rd {
+            Opened::Untiled(rd) => decode::decode_reader(rd, &self.opts, progress)?,
+            Opened::Tiled(rd) => {
+                let (r, skipped) = tiles::decode_tiled(rd, &self.opts, progress)?;
+                self.skipped = skipped;
+                r
+            }
+        };
         progress(1.0);
         Ok(r)
+    }
+
+    /// Decode band by band: `sink` gets the window's rows top to bottom, a row of tiles at
+    /// a time, so a tiled file of any size decodes to a streaming writer in the memory of
+    /// one band (an untiled file comes as one band). `--scale` is not available here.
+    pub fn decode_bands(
+        &mut self,
+        sink: &mut dyn FnMut(Raster) -> Result<()>,
+        progress: &(dyn Fn(f64) + Sync),
+    ) -> Result<()> {
+        if self.opts.scale.is_some() {
+            return Err(Error::invalid("a band-by-band decode cannot resample (--scale)"));
+        }
+        progress(0.0);
+        match &mut self.rd {
+            Opened::Untiled(rd) => sink(decode::decode_reader(rd, &self.opts, progress)?)?,
+            Opened::Tiled(rd) => {
+                self.skipped = tiles::decode_bands(rd, &self.opts, sink, progress)?;
+            }
+        }
+        progress(1.0);
+        Ok(())
     }
 
     /// Decode into the caller's buffer of the file's sample type (or a wider one): one
@@ -417,20 +576,26 @@ impl<R: Read + Seek> Decoder<R> {
         m: &dyn methods::Representation,
         f: impl FnOnce(&DecodeJob) -> Result<T>,
     ) -> Result<Option<T>> {
-        let header = self.rd.header().clone();
+        let Opened::Untiled(rd) = &mut self.rd else {
+            return Err(Error::invalid(format!(
+                "the file is tiled ({} tiles): statistics and sites are per tile; encode with --tile 0 for one set",
+                self.info.tiles.as_ref().map_or(0, |t| t.tiles.len())
+            )));
+        };
+        let header = rd.header().clone();
         let primary = header.primary as usize;
-        let idx = match self.rd.entries().get(primary) {
+        let idx = match rd.entries().get(primary) {
             Some(e) if e.kind == m.section() => Some(primary),
-            _ => self.rd.find(m.section()),
+            _ => rd.find(m.section()),
         };
         let Some(i) = idx else { return Ok(None) };
         if self.mask.is_none() {
-            self.mask = Some(self.rd.read_mask()?);
+            self.mask = Some(rd.read_mask()?);
         }
         let mask = self.mask.as_ref().and_then(|m| m.as_deref());
-        let flat = self.rd.read_flat(mask)?;
+        let flat = rd.read_flat(mask)?;
         let method_mask = decode::method_mask(mask, flat.as_ref(), header.samples() as usize);
-        let payload = self.rd.read_section(i)?;
+        let payload = rd.read_section(i)?;
         let job = DecodeJob {
             payload: &payload,
             header: &header,

@@ -27,6 +27,14 @@ pub struct EncodeOptions {
     pub target_bytes: Option<u64>,
     /// Free-form JSON stored in a metadata section (e.g. provenance).
     pub metadata: Option<String>,
+    /// Tile side in samples: a raster larger than this in either direction is cut into
+    /// tiles that encode and decode independently (container version 2). `None` = tiles of
+    /// [`DEFAULT_TILE`](crate::DEFAULT_TILE) for rasters larger than 2048 in either
+    /// direction, else untiled; `Some(0)` = never tile (version 1).
+    pub tile: Option<u32>,
+    /// Threads for a tiled encode (0 = what the machine offers); the bytes are the same
+    /// for every value.
+    pub threads: usize,
     /// Encoder effort 1..=9, speed against size, as JPEG XL and zstd users know it; `None`
     /// = [`DEFAULT_EFFORT`](crate::DEFAULT_EFFORT). Read by the methods that have choices to
     /// make (the residual layer); decoding speed does not depend on it.
@@ -122,5 +130,9 @@ pub struct DecodeOptions {
     /// bit-identical for every value.
     pub threads: usize,
     /// Sites section: evaluate the continuous surface on a grid scaled by this factor.
+    /// In a tiled file, any method: the decoded samples resampled bilinearly.
     pub scale: Option<Scale>,
+    /// Tiled files: a tile that fails its checksum or its decode becomes nodata (listed by
+    /// [`Decoder::skipped`](crate::Decoder::skipped)) instead of failing the decode.
+    pub skip_corrupt: bool,
 }

@@ -140,3 +140,57 @@ pub(crate) fn verify<R: Read + Seek>(rd: &mut ContainerReader<R>) -> Result<Veri
         unknown,
     })
 }
+
+/// [`verify`] for a tiled file: the global sections, then every tile's block (its
+/// checksum), its sections checked as a file's, and its decode against its index entry
+/// (valid count, range, max error).
+pub(crate) fn verify_tiled<R: Read + Seek>(
+    rd: &mut crate::container::tiled::TiledReader<R>,
+) -> Result<Verified> {
+    for e in rd.global().to_vec() {
+        let p = rd
+            .global_section(e.kind)?
+            .expect("the directory lists it");
+        let text = std::str::from_utf8(&p)
+            .map_err(|_| Error::corrupt(format!("global {} section: not UTF-8", e.name)))?;
+        if e.kind == SectionKind::METADATA {
+            serde_json::from_str::<serde_json::Value>(text).map_err(|err| {
+                Error::corrupt(format!("global metadata section: not JSON: {err}"))
+            })?;
+        }
+    }
+    let grid = rd.grid();
+    let mut out = Verified {
+        sections: rd.global().len(),
+        surfaces: Vec::new(),
+        valid: 0,
+        unknown: Vec::new(),
+    };
+    for k in 0..rd.tiles().len() {
+        let name = crate::container::tiled::tile_name(&grid, k);
+        let entry = rd.tiles()[k].clone();
+        let block = rd.tile_block(k)?;
+        let mut trd = rd.opener().open(k, block)?;
+        let v = verify(&mut trd).map_err(|e| e.context(&name))?;
+        if v.valid != entry.valid {
+            return Err(Error::corrupt(format!(
+                "{name}: the index gives {} valid samples, the tile has {}",
+                entry.valid, v.valid
+            )));
+        }
+        let primary = trd.header().primary as usize;
+        if let Some((_, _, b)) = v.surfaces.iter().find(|s| s.0 == primary) {
+            if *b != entry.max_error {
+                return Err(Error::corrupt(format!(
+                    "{name}: the index gives a max error of {}, its section stores {b}",
+                    entry.max_error
+                )));
+            }
+        }
+        out.sections += v.sections;
+        out.valid += v.valid;
+        out.surfaces
+            .extend(v.surfaces.into_iter().map(|(i, n, b)| (k, format!("{name}: section {i} ({n})"), b)));
+    }
+    Ok(out)
+}

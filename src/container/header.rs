@@ -122,6 +122,14 @@ impl Header {
     /// Parse and validate a header body; every out-of-range field is rejected.
     pub fn from_bytes(body: &[u8]) -> Result<Header> {
         let mut r = ByteReader::new(body, "header");
+        let h = Header::read_fields(&mut r)?;
+        r.finish()?;
+        Ok(h)
+    }
+
+    /// Parse the version-1 header fields from the front of `r` (a version-2 header body
+    /// continues with the tile fields).
+    pub(crate) fn read_fields(r: &mut ByteReader) -> Result<Header> {
         let width = r.u32("width")?;
         let height = r.u32("height")?;
         if width == 0 || height == 0 || width > i32::MAX as u32 || height > i32::MAX as u32 {
@@ -215,7 +223,6 @@ impl Header {
         } else {
             None
         };
-        r.finish()?;
         Ok(Header {
             width,
             height,

@@ -6,6 +6,7 @@ pub mod bytes;
 pub mod flat;
 pub mod header;
 pub mod mask;
+pub mod tiled;
 
 pub use header::Header;
 
@@ -146,19 +147,7 @@ pub fn write(header: &Header, sections: &[Section]) -> Vec<u8> {
     out.extend_from_slice(&body);
     let crc = crc32fast::hash(&out);
     out.put_u32(crc);
-    let dir_start = out.len();
-    out.put_u32(sections.len() as u32);
-    for s in sections {
-        out.put_u16(s.kind.code());
-        out.put_u16(s.flags);
-        out.put_u32(crc32fast::hash(&s.payload));
-        out.put_u64(s.payload.len() as u64);
-    }
-    let crc = crc32fast::hash(&out[dir_start..]);
-    out.put_u32(crc);
-    for s in sections {
-        out.extend_from_slice(&s.payload);
-    }
+    tiled::directory_bytes(&mut out, sections);
     out
 }
 
@@ -245,106 +234,9 @@ impl<R: Read + Seek> ContainerReader<R> {
                 limits.max_samples
             )));
         }
-        // Directory.
         let dir_pos = 16 + hlen as u64 + 4;
-        let mut cnt = [0u8; 4];
-        if dir_pos + 4 > file_len {
-            return Err(Error::corrupt("file is truncated in the section directory"));
-        }
-        read_exact(&mut inner, &mut cnt, "section directory")?;
-        let count = u32::from_le_bytes(cnt);
-        if count > MAX_SECTIONS {
-            return Err(Error::corrupt(format!(
-                "section count {count} is over the limit of {MAX_SECTIONS}"
-            )));
-        }
-        let dir_len = count as u64 * DIR_ENTRY_LEN as u64 + 4;
-        if dir_pos + 4 + dir_len > file_len {
-            return Err(Error::corrupt("file is truncated in the section directory"));
-        }
-        let mut dbuf = vec![0u8; dir_len as usize];
-        read_exact(&mut inner, &mut dbuf, "section directory")?;
-        let (entries_bytes, crc_bytes) = dbuf.split_at(dbuf.len() - 4);
-        let mut h = crc32fast::Hasher::new();
-        h.update(&cnt);
-        h.update(entries_bytes);
-        if !checksum_ok(h.finalize(), crc_bytes) {
-            return Err(Error::corrupt("section directory checksum mismatch"));
-        }
-        let mut r = ByteReader::new(entries_bytes, "section directory");
-        let mut offset = dir_pos + 4 + dir_len;
-        let mut entries = Vec::with_capacity(count as usize);
-        for i in 0..count {
-            let kind = SectionKind::from_code(r.u16("section type")?);
-            let name = kind_name(kind, names);
-            let known = kind.framing_name().is_some() || names(kind).is_some();
-            let flags = r.u16("section flags")?;
-            let crc = r.u32("section checksum")?;
-            let length = r.u64("section length")?;
-            if kind.code() == 0 {
-                return Err(Error::corrupt(format!("section {i}: type 0 is reserved")));
-            }
-            if flags & !SF_KNOWN != 0 {
-                return Err(Error::unsupported(format!(
-                    "section {i} ({}): unknown flags 0x{:04x}",
-                    name,
-                    flags & !SF_KNOWN
-                )));
-            }
-            if !known && flags & SF_REQUIRED != 0 {
-                return Err(Error::unsupported(format!(
-                    "section {i} has type {}, which this decoder does not know and the file requires",
-                    kind.0
-                )));
-            }
-            if length > limits.max_section_bytes {
-                return Err(Error::limit(format!(
-                    "section {i} ({}) of {length} bytes is over the limit of {}",
-                    name, limits.max_section_bytes
-                )));
-            }
-            let end = offset
-                .checked_add(length)
-                .filter(|&e| e <= file_len)
-                .ok_or_else(|| {
-                    Error::corrupt(format!(
-                        "file is truncated in section {i} ({}): it needs {length} bytes at offset {offset}, the file has {file_len}",
-                        name
-                    ))
-                })?;
-            entries.push(SectionEntry {
-                kind,
-                name,
-                flags,
-                crc,
-                offset,
-                length,
-            });
-            offset = end;
-        }
-        if offset != file_len {
-            return Err(Error::corrupt(format!(
-                "{} unexpected bytes after the last section",
-                file_len - offset
-            )));
-        }
-        if count > 0 || header.primary != 0 {
-            match entries.get(header.primary as usize) {
-                Some(e) if e.kind.may_be_primary() => {}
-                Some(e) => {
-                    return Err(Error::corrupt(format!(
-                        "primary section {} is a {} section, not a representation",
-                        header.primary, e.name
-                    )));
-                }
-                None => {
-                    return Err(Error::corrupt(format!(
-                        "primary section {} does not exist ({} sections)",
-                        header.primary, count
-                    )));
-                }
-            }
-        }
+        let entries = read_directory(&mut inner, dir_pos, file_len, &limits, names, "")?;
+        check_primary(&entries, header.primary)?;
         Ok(ContainerReader {
             inner,
             header,
@@ -353,6 +245,39 @@ impl<R: Read + Seek> ContainerReader<R> {
         })
     }
 
+    /// A reader over one tile of a version-2 file: `inner` holds the tile's block
+    /// (spec/FORMAT.md, "Tile block"), `header` the tile's own header (its size, and the
+    /// file's sample type, mapping, nodata and georef). `what` names the tile in errors.
+    pub fn tile(mut inner: R, mut header: Header, limits: Limits, names: KindNames, what: &str) -> Result<Self> {
+        let len = inner
+            .seek(SeekFrom::End(0))
+            .map_err(|e| Error::io("measuring the tile", e))?;
+        inner
+            .seek(SeekFrom::Start(0))
+            .map_err(|e| Error::io("seeking", e))?;
+        let mut head = [0u8; 4];
+        if len < 4 {
+            return Err(Error::corrupt(format!("{what} is truncated in its block header")));
+        }
+        read_exact(&mut inner, &mut head, "tile block")?;
+        let primary = u16::from_le_bytes([head[0], head[1]]);
+        let reserved = u16::from_le_bytes([head[2], head[3]]);
+        if reserved != 0 {
+            return Err(Error::corrupt(format!("{what}: reserved field is {reserved}, not 0")));
+        }
+        header.primary = primary;
+        let entries = read_directory(&mut inner, 4, len, &limits, names, what)?;
+        check_primary(&entries, primary).map_err(|e| e.context(what))?;
+        Ok(ContainerReader {
+            inner,
+            header,
+            entries,
+            limits,
+        })
+    }
+}
+
+impl<R: Read + Seek> ContainerReader<R> {
     pub fn header(&self) -> &Header {
         &self.header
     }
@@ -427,6 +352,128 @@ impl<R: Read + Seek> ContainerReader<R> {
             )));
         }
         Ok(buf)
+    }
+}
+
+/// Read a section directory at `dir_pos` (count, entries, checksum) whose payloads follow it
+/// back to back and end exactly at `end`. `what` prefixes errors (the tile, in a tiled file).
+fn read_directory<R: Read + Seek>(
+    inner: &mut R,
+    dir_pos: u64,
+    end: u64,
+    limits: &Limits,
+    names: KindNames,
+    what: &str,
+) -> Result<Vec<SectionEntry>> {
+    let pre = |m: String| match (what.is_empty(), m.starts_with("truncated")) {
+        (true, true) => format!("file is {m}"),
+        (true, false) => m,
+        (false, _) => format!("{what}: {m}"),
+    };
+    inner
+        .seek(SeekFrom::Start(dir_pos))
+        .map_err(|e| Error::io("seeking", e))?;
+    let mut cnt = [0u8; 4];
+    if dir_pos + 4 > end {
+        return Err(Error::corrupt(pre("truncated in the section directory".into())));
+    }
+    read_exact(inner, &mut cnt, "section directory")?;
+    let count = u32::from_le_bytes(cnt);
+    if count > MAX_SECTIONS {
+        return Err(Error::corrupt(pre(format!(
+            "section count {count} is over the limit of {MAX_SECTIONS}"
+        ))));
+    }
+    let dir_len = count as u64 * DIR_ENTRY_LEN as u64 + 4;
+    if dir_pos + 4 + dir_len > end {
+        return Err(Error::corrupt(pre("truncated in the section directory".into())));
+    }
+    let mut dbuf = vec![0u8; dir_len as usize];
+    read_exact(inner, &mut dbuf, "section directory")?;
+    let (entries_bytes, crc_bytes) = dbuf.split_at(dbuf.len() - 4);
+    let mut h = crc32fast::Hasher::new();
+    h.update(&cnt);
+    h.update(entries_bytes);
+    if !checksum_ok(h.finalize(), crc_bytes) {
+        return Err(Error::corrupt(pre("section directory checksum mismatch".into())));
+    }
+    let mut r = ByteReader::new(entries_bytes, "section directory");
+    let mut offset = dir_pos + 4 + dir_len;
+    let mut entries = Vec::with_capacity(count as usize);
+    for i in 0..count {
+        let kind = SectionKind::from_code(r.u16("section type")?);
+        let name = kind_name(kind, names);
+        let known = kind.framing_name().is_some() || names(kind).is_some();
+        let flags = r.u16("section flags")?;
+        let crc = r.u32("section checksum")?;
+        let length = r.u64("section length")?;
+        if kind.code() == 0 {
+            return Err(Error::corrupt(pre(format!("section {i}: type 0 is reserved"))));
+        }
+        if flags & !SF_KNOWN != 0 {
+            return Err(Error::unsupported(pre(format!(
+                "section {i} ({}): unknown flags 0x{:04x}",
+                name,
+                flags & !SF_KNOWN
+            ))));
+        }
+        if !known && flags & SF_REQUIRED != 0 {
+            return Err(Error::unsupported(pre(format!(
+                "section {i} has type {}, which this decoder does not know and the file requires",
+                kind.0
+            ))));
+        }
+        if length > limits.max_section_bytes {
+            return Err(Error::limit(pre(format!(
+                "section {i} ({}) of {length} bytes is over the limit of {}",
+                name, limits.max_section_bytes
+            ))));
+        }
+        let e = offset
+            .checked_add(length)
+            .filter(|&e| e <= end)
+            .ok_or_else(|| {
+                Error::corrupt(pre(format!(
+                    "truncated in section {i} ({}): it needs {length} bytes at offset {offset}, only {end} are there",
+                    name
+                )))
+            })?;
+        entries.push(SectionEntry {
+            kind,
+            name,
+            flags,
+            crc,
+            offset,
+            length,
+        });
+        offset = e;
+    }
+    if offset != end {
+        return Err(Error::corrupt(pre(format!(
+            "{} unexpected bytes after the last section",
+            end - offset
+        ))));
+    }
+    Ok(entries)
+}
+
+/// Check that the primary index names a representation section (any section when there
+/// is none and the index is 0).
+fn check_primary(entries: &[SectionEntry], primary: u16) -> Result<()> {
+    if entries.is_empty() && primary == 0 {
+        return Ok(());
+    }
+    match entries.get(primary as usize) {
+        Some(e) if e.kind.may_be_primary() => Ok(()),
+        Some(e) => Err(Error::corrupt(format!(
+            "primary section {} is a {} section, not a representation",
+            primary, e.name
+        ))),
+        None => Err(Error::corrupt(format!(
+            "primary section {} does not exist ({} sections)",
+            primary,
+            entries.len()
+        ))),
     }
 }
 

@@ -21,7 +21,7 @@ mod sidecar;
 use crate::error::{Error, Result};
 use crate::model::{DEFAULT_MAX_SAMPLES, Raster, SampleType, ValueMapping};
 pub(crate) use output::OutputFile;
-pub use output::write_file;
+pub use output::{PendingFile, write_file};
 pub(crate) use pam::without_statistics;
 pub use png::PngMapping;
 use std::path::Path;
@@ -126,6 +126,28 @@ pub struct WriteOptions {
 }
 
 /// Read a raster file, choosing the format by extension unless `opts.format` says.
+/// Open a raster file to be read band by band: raw `.f32` by seeking, GeoTIFF by chunks
+/// (neither held whole, so they may be larger than memory and than `max_samples`); other
+/// formats are read whole.
+pub fn open_source(path: &Path, opts: &ReadOptions) -> Result<Box<dyn crate::model::RowSource>> {
+    let format = match opts.format {
+        Some(f) => f,
+        None => Format::from_path(path)?,
+    };
+    let ctx = path.display().to_string();
+    match format {
+        Format::RawF32 => {
+            let json_path = path.with_extension("json");
+            let json = std::fs::read(&json_path)
+                .map_err(|e| Error::io(format!("sidecar {}", json_path.display()), e))?;
+            let s = raw::RawSource::open(path, &json).map_err(|e| e.context(&ctx))?;
+            Ok(Box::new(s))
+        }
+        Format::Vtz => Err(not_here()),
+        _ => Ok(Box::new(read_path(path, opts)?)),
+    }
+}
+
 pub(crate) fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
     let format = match opts.format {
         Some(f) => f,

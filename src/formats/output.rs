@@ -77,3 +77,57 @@ pub fn write_file(path: &Path, bytes: Vec<u8>, force: bool) -> Result<()> {
         force,
     )
 }
+
+/// A file written in pieces (a tiled `.vtz`, a GeoTIFF band by band), atomically: the
+/// pieces go to a temporary sibling that [`PendingFile::commit`] syncs and renames into
+/// place; dropped without a commit (an error, a panic), the temporary is removed.
+pub struct PendingFile {
+    path: PathBuf,
+    tmp: PathBuf,
+    out: Option<std::io::BufWriter<std::fs::File>>,
+}
+
+impl PendingFile {
+    /// Refuse an existing `path` unless `force`; create the temporary.
+    pub fn create(path: &Path, force: bool) -> Result<PendingFile> {
+        if !force && path.exists() {
+            return Err(Error::invalid(format!(
+                "{} exists (use --force to overwrite)",
+                path.display()
+            )));
+        }
+        let tmp = temp_path(path);
+        let file = std::fs::File::create(&tmp)
+            .map_err(|e| Error::io(format!("creating {}", tmp.display()), e))?;
+        Ok(PendingFile {
+            path: path.to_path_buf(),
+            tmp,
+            out: Some(std::io::BufWriter::with_capacity(1 << 20, file)),
+        })
+    }
+    /// The temporary file to write (buffered, seekable).
+    pub fn writer(&mut self) -> &mut std::io::BufWriter<std::fs::File> {
+        self.out.as_mut().expect("present until commit")
+    }
+    /// Flush, sync and rename into place.
+    pub fn commit(mut self) -> Result<()> {
+        let out = self.out.take().expect("present until commit");
+        let ctx = format!("writing {}", self.path.display());
+        let file = out
+            .into_inner()
+            .map_err(|e| Error::io(&ctx, e.into_error()))?;
+        file.sync_all().map_err(|e| Error::io(&ctx, e))?;
+        drop(file);
+        std::fs::rename(&self.tmp, &self.path)
+            .map_err(|e| Error::io(format!("renaming into {}", self.path.display()), e))
+    }
+}
+
+impl Drop for PendingFile {
+    fn drop(&mut self) {
+        if self.out.is_some() {
+            self.out = None;
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}

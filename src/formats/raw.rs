@@ -215,7 +215,6 @@ pub fn read(bytes: &[u8], json: &[u8], opts: &ReadOptions) -> Result<Raster> {
             bytes.len()
         )));
     }
-    let declared = sample_type_from_text(json_text(&meta.source_dtype));
     let nodata32 = meta.nodata.map(|v| v.0 as f32);
     if nodata32.is_some_and(f32::is_nan) {
         return Err(Error::corrupt("raw sidecar json: nodata is NaN"));
@@ -241,6 +240,25 @@ pub fn read(bytes: &[u8], json: &[u8], opts: &ReadOptions) -> Result<Raster> {
         }
         data.push(v as f64);
     }
+    let (st, mapping, georef) = band_meta(&meta, height, lo, hi, all_int)?;
+    let mut r = Raster::from_values(width, height, data, nodata32.map(|v| v as f64), st)?;
+    if let Some(m) = mapping {
+        r.mapping = m;
+    }
+    r.georef = georef;
+    Ok(r)
+}
+
+/// What a raw raster's sidecar and the range of its values decide: the sample type, the
+/// value mapping and the georef (for a raster of `height` rows).
+fn band_meta(
+    meta: &RawJsonIn,
+    height: usize,
+    lo: f64,
+    hi: f64,
+    all_int: bool,
+) -> Result<(SampleType, Option<ValueMapping>, Option<Georef>)> {
+    let declared = sample_type_from_text(json_text(&meta.source_dtype));
     // An integer source_dtype may describe stored codes rather than the values (e.g. a
     // uint16 PNG holding metres + 32768): keep it only when the values fit it, else take the
     // smallest signed integer type that holds them, else f32.
@@ -257,18 +275,19 @@ pub fn read(bytes: &[u8], json: &[u8], opts: &ReadOptions) -> Result<Raster> {
     } else {
         SampleType::F32
     };
-    let nodata = nodata32.map(|v| v as f64);
-    let mut r = Raster::from_values(width, height, data, nodata, sample_type)?;
-    if let Some(m) = meta.value_mapping {
-        let (scale, offset) = (m.scale.0, m.offset.0);
-        if !(scale.is_finite() && scale != 0.0 && offset.is_finite()) {
-            return Err(Error::corrupt(format!(
-                "raw sidecar json: value_mapping scale {scale} / offset {offset} is not usable"
-            )));
+    let mapping = match &meta.value_mapping {
+        Some(m) => {
+            let (scale, offset) = (m.scale.0, m.offset.0);
+            if !(scale.is_finite() && scale != 0.0 && offset.is_finite()) {
+                return Err(Error::corrupt(format!(
+                    "raw sidecar json: value_mapping scale {scale} / offset {offset} is not usable"
+                )));
+            }
+            Some(ValueMapping { scale, offset })
         }
-        r.mapping = ValueMapping { scale, offset };
-    }
-    r.georef = match meta.georef {
+        None => None,
+    };
+    let georef = match meta.georef.clone() {
         Some(g) => Some(g.into()),
         None => match (json_f64(&meta.dx), json_f64(&meta.dy)) {
             (Some(dx), Some(dy)) => georef_from_text(
@@ -281,7 +300,115 @@ pub fn read(bytes: &[u8], json: &[u8], opts: &ReadOptions) -> Result<Raster> {
             _ => None,
         },
     };
-    Ok(r)
+    Ok((sample_type, mapping, georef))
+}
+
+/// A raw `.f32` raster read a band of rows at a time by seeking, after one pass over the
+/// file for the range of its values (which decides the sample type, as [`read`] does).
+pub struct RawSource {
+    file: std::io::BufReader<std::fs::File>,
+    width: usize,
+    height: usize,
+    nodata32: Option<f32>,
+    sample_type: SampleType,
+    mapping: ValueMapping,
+    georef: Option<Georef>,
+}
+
+impl RawSource {
+    /// Open `path`, its sidecar `json` already read. The raster may exceed
+    /// `opts.max_samples()`: only bands are held.
+    pub fn open(path: &std::path::Path, json: &[u8]) -> Result<RawSource> {
+        use std::io::Read;
+        expect_json_object(json, "raw sidecar json")?;
+        let meta: RawJsonIn = serde_json::from_slice(json)
+            .map_err(|e| Error::corrupt(format!("raw sidecar json: {e}")))?;
+        let w = json_usize(&meta.width, "width")?;
+        let h = json_usize(&meta.height, "height")?;
+        let (width, height) = (w as usize, h as usize);
+        let n = check_size(w, h, u64::MAX)?;
+        let ctx = path.display().to_string();
+        let file = std::fs::File::open(path).map_err(|e| Error::io(&ctx, e))?;
+        let len = file.metadata().map_err(|e| Error::io(&ctx, e))?.len();
+        if len != n as u64 * 4 {
+            return Err(Error::corrupt(format!(
+                "raw f32 data has {len} bytes, but {width}x{height} samples need {}",
+                n as u64 * 4
+            )));
+        }
+        let nodata32 = meta.nodata.map(|v| v.0 as f32);
+        if nodata32.is_some_and(f32::is_nan) {
+            return Err(Error::corrupt("raw sidecar json: nodata is NaN"));
+        }
+        let (mut lo, mut hi, mut all_int) = (f64::INFINITY, f64::NEG_INFINITY, true);
+        let mut rd = std::io::BufReader::with_capacity(1 << 20, file);
+        // Whole rows at a time (the file's length was checked, so they are all there).
+        let mut buf = vec![0u8; width * 4];
+        for y in 0..height {
+            rd.read_exact(&mut buf).map_err(|e| Error::io(&ctx, e))?;
+            for (x, c) in buf.chunks_exact(4).enumerate() {
+                let v = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+                if nodata32.is_some_and(|nd| v == nd) || v.is_nan() {
+                    continue;
+                }
+                if v.is_infinite() {
+                    return Err(Error::corrupt(format!(
+                        "raw f32 sample {} (row {y}, col {x}) is infinite",
+                        y * width + x
+                    )));
+                }
+                let d = v as f64;
+                lo = lo.min(d);
+                hi = hi.max(d);
+                all_int &= d.fract() == 0.0;
+            }
+        }
+        let (sample_type, mapping, georef) = band_meta(&meta, height, lo, hi, all_int)?;
+        Ok(RawSource {
+            file: rd,
+            width,
+            height,
+            nodata32,
+            sample_type,
+            mapping: mapping.unwrap_or_default(),
+            georef,
+        })
+    }
+}
+
+impl crate::model::RowSource for RawSource {
+    fn width(&self) -> usize {
+        self.width
+    }
+    fn height(&self) -> usize {
+        self.height
+    }
+    fn band(&mut self, y0: usize, rows: usize) -> Result<Raster> {
+        use std::io::{Read, Seek, SeekFrom};
+        if y0 + rows > self.height {
+            return Err(Error::invalid("band outside the raster"));
+        }
+        let io = |e| Error::io("reading the raw f32 file", e);
+        self.file
+            .seek(SeekFrom::Start((y0 * self.width * 4) as u64))
+            .map_err(io)?;
+        let mut buf = vec![0u8; rows * self.width * 4];
+        self.file.read_exact(&mut buf).map_err(io)?;
+        let data: Vec<f64> = buf
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64)
+            .collect();
+        let mut r = Raster::from_values(
+            self.width,
+            rows,
+            data,
+            self.nodata32.map(|v| v as f64),
+            self.sample_type,
+        )?;
+        r.mapping = self.mapping;
+        r.georef = self.georef.as_ref().map(|g| g.window(0, y0));
+        Ok(r)
+    }
 }
 
 /// Write a raster as raw little-endian f32 bytes plus a json sidecar.

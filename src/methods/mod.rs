@@ -400,3 +400,21 @@ pub(crate) fn crop<T: Copy>(v: &[T], width: usize, win: Window) -> Vec<T> {
     }
     out
 }
+
+thread_local! {
+    static THREAD_BUDGET: std::cell::Cell<Option<usize>> = const { std::cell::Cell::new(None) };
+}
+
+/// Run `f` with the methods' own threads limited to `n` on this thread (a tiled encode
+/// runs one tile per core, each with one thread).
+pub(crate) fn with_threads<T>(n: usize, f: impl FnOnce() -> T) -> T {
+    let old = THREAD_BUDGET.with(|c| c.replace(Some(n.max(1))));
+    let out = f();
+    THREAD_BUDGET.with(|c| c.set(old));
+    out
+}
+
+/// The thread limit [`with_threads`] set on this thread, if any.
+pub(crate) fn thread_budget() -> Option<usize> {
+    THREAD_BUDGET.with(|c| c.get())
+}

@@ -480,3 +480,71 @@ impl FromStr for Window {
         Window::parse(s)
     }
 }
+
+/// A raster read a band of full-width rows at a time, so that a file larger than memory can
+/// be encoded tile row by tile row (raw `.f32` by seeking, GeoTIFF by chunks).
+pub trait RowSource: Send {
+    /// Samples per row.
+    fn width(&self) -> usize;
+    /// Rows.
+    fn height(&self) -> usize;
+    /// Rows `y0..y0 + rows`, full width, with the source's sample type, mapping, nodata and
+    /// GDAL metadata, and its georef moved to the band's first row.
+    fn band(&mut self, y0: usize, rows: usize) -> Result<Raster>;
+}
+
+/// A raster already in memory as a [`RowSource`].
+pub struct InMemory<'a>(pub &'a Raster);
+
+impl RowSource for InMemory<'_> {
+    fn width(&self) -> usize {
+        self.0.width
+    }
+    fn height(&self) -> usize {
+        self.0.height
+    }
+    fn band(&mut self, y0: usize, rows: usize) -> Result<Raster> {
+        let r = self.0;
+        if y0 + rows > r.height {
+            return Err(crate::error::Error::invalid("band outside the raster"));
+        }
+        let (a, b) = (y0 * r.width, (y0 + rows) * r.width);
+        Ok(Raster {
+            width: r.width,
+            height: rows,
+            data: r.data[a..b].to_vec(),
+            mask: r.mask.as_ref().map(|m| m[a..b].to_vec()),
+            georef: r.georef.as_ref().map(|g| g.window(0, y0)),
+            ..r.clone_meta()
+        })
+    }
+}
+
+impl Raster {
+    /// Everything but the samples (an empty 0×0 raster with this one's metadata).
+    pub(crate) fn clone_meta(&self) -> Raster {
+        Raster {
+            width: 0,
+            height: 0,
+            data: Vec::new(),
+            mask: None,
+            nodata: self.nodata,
+            sample_type: self.sample_type,
+            mapping: self.mapping,
+            georef: self.georef.clone(),
+            gdal_metadata: self.gdal_metadata.clone(),
+        }
+    }
+}
+
+impl RowSource for Raster {
+    fn width(&self) -> usize {
+        self.width
+    }
+    fn height(&self) -> usize {
+        self.height
+    }
+    fn band(&mut self, y0: usize, rows: usize) -> Result<Raster> {
+        InMemory(self).band(y0, rows)
+    }
+}

@@ -77,6 +77,39 @@ impl Ui {
     /// Run `f` with a progress bar fed by its callback (fraction 0..1): percentage, elapsed
     /// time and ETA, drawn from the first second on a terminal (ticking even while the work
     /// reports nothing), never moving backwards; hidden with --quiet.
+    /// [`Ui::progress`] for work done tile by tile: the bar counts `tiles` (a plain bar
+    /// when there is one).
+    pub fn progress_tiles<T>(
+        &self,
+        msg: &str,
+        tiles: u64,
+        f: impl FnOnce(&(dyn Fn(f64) + Sync)) -> T,
+    ) -> T {
+        if self.quiet || tiles <= 1 {
+            return self.progress(msg, f);
+        }
+        let pb = ProgressBar::with_draw_target(Some(tiles), ProgressDrawTarget::hidden());
+        pb.set_style(
+            ProgressStyle::with_template(
+                "{msg} [{bar:30}] {pos}/{len} tiles {elapsed_precise} ETA {eta_precise}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+        );
+        pb.set_message(msg.to_string());
+        let shown = ShowAfterASecond::new(&pb);
+        let high = AtomicU64::new(0);
+        let out = f(&|frac: f64| {
+            let pos = (frac.clamp(0.0, 1.0) * tiles as f64).round() as u64;
+            let prev = high.fetch_max(pos, Ordering::Relaxed);
+            if pos > prev {
+                pb.set_position(pos);
+            }
+        });
+        shown.done();
+        out
+    }
+
     pub fn progress<T>(&self, msg: &str, f: impl FnOnce(&(dyn Fn(f64) + Sync)) -> T) -> T {
         if self.quiet {
             return f(&|_| {});
@@ -148,6 +181,28 @@ pub fn read_raster(path: &Path, format: Option<Format>, opts: &RasterOpts) -> Re
         ..Default::default()
     };
     vtz::read_path(path, &ro)
+}
+
+/// The raster to encode, read band by band where its format allows (raw `.f32`, GeoTIFF),
+/// else whole (a `.vtz` is decoded).
+pub fn open_source(
+    path: &Path,
+    format: Option<Format>,
+    opts: &RasterOpts,
+) -> Result<Box<dyn vtz::RowSource>> {
+    let f = match format {
+        Some(f) => f,
+        None => Format::from_path(path)?,
+    };
+    if f == Format::Vtz {
+        return Ok(Box::new(read_raster(path, format, opts)?));
+    }
+    let ro = ReadOptions {
+        format,
+        png_mapping: opts.mapping(),
+        ..Default::default()
+    };
+    vtz::formats::open_source(path, &ro)
 }
 
 pub fn write_options(format: Option<Format>, force: bool, opts: &RasterOpts) -> WriteOptions {

@@ -30,6 +30,13 @@ pub struct Args {
     /// Sites section: evaluate the surface on a grid scaled by S (2, 0.5, 3/2, …).
     #[arg(long, value_name = "S")]
     pub scale: Option<String>,
+    /// Threads (default: all cores); the output is the same for any count.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub threads: usize,
+    /// Tiled files: write nodata for a tile that is corrupt (each one reported) and decode
+    /// the rest, instead of failing.
+    #[arg(long)]
+    pub skip_corrupt: bool,
     /// Replace an existing output file.
     #[arg(short, long)]
     pub force: bool,
@@ -53,13 +60,22 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     opts.levels = a.level;
     opts.window = a.window.as_deref().map(str::parse).transpose()?;
     opts.scale = a.scale.as_deref().map(str::parse).transpose()?;
-    let bytes = common::read_file(&a.input)?;
-    let raster = ui
-        .progress("decoding", |p| {
-            let mut d = vtz::Decoder::with_limits(std::io::Cursor::new(&bytes), opts.limits)?;
-            d.options(opts.clone()).decode_progress(p)
-        })
+    opts.threads = a.threads;
+    opts.skip_corrupt = a.skip_corrupt;
+    let file = std::fs::File::open(&a.input)
+        .map_err(|e| vtz::Error::io(a.input.display().to_string(), e))?;
+    let mut d = vtz::Decoder::with_limits(std::io::BufReader::new(file), opts.limits)
         .map_err(|e| e.context(a.input.display()))?;
+    let tiles = match (&d.info().tiles, opts.window) {
+        (Some(t), None) => t.tiles.len() as u64,
+        _ => 1,
+    };
+    let raster = ui
+        .progress_tiles("decoding", tiles, |p| d.options(opts.clone()).decode_progress(p))
+        .map_err(|e| e.context(a.input.display()))?;
+    for s in d.skipped() {
+        ui.say(format!("warning: wrote nodata for {s}"));
+    }
     let wo = common::write_options(format, a.force, &a.raster);
     ui.busy("writing", || vtz::write_path(&raster, &a.output, &wo))?;
     ui.say(format!(

@@ -62,6 +62,14 @@ pub struct Args {
     /// Print the result as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Cut a raster larger than N samples in either direction into tiles of at most N × N
+    /// that encode on all cores and decode alone (0 = never). Default: rasters larger than
+    /// 2048 in either direction are cut into tiles of about 1024.
+    #[arg(long, value_name = "N")]
+    pub tile: Option<u32>,
+    /// Threads for a tiled encode (default: all cores); the file is the same for any count.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub threads: usize,
     #[command(flatten)]
     pub raster: RasterOpts,
 }
@@ -81,13 +89,14 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     if let Some(b) = a.bps.filter(|b| !(*b > 0.0 && b.is_finite())) {
         return Err(vtz::Error::invalid(format!("--bps {b} must be positive")));
     }
-    let raster = ui.busy("reading", || {
-        common::read_raster(&a.input, format, &a.raster)
+    let mut src = ui.busy("reading", || {
+        common::open_source(&a.input, format, &a.raster)
     })?;
+    let samples = src.width() * src.height();
     let target_bytes = match (a.size, a.bps) {
         (Some(s), _) => Some(s),
         (None, Some(b)) if b > 0.0 && b.is_finite() => {
-            Some((b * raster.len() as f64 / 8.0).floor() as u64)
+            Some((b * samples as f64 / 8.0).floor() as u64)
         }
         (None, Some(b)) => {
             return Err(vtz::Error::invalid(format!("--bps {b} must be positive")));
@@ -98,12 +107,10 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     opts.max_error = bound;
     opts.methods = methods;
     opts.params.sibson.rmse = rmse;
-    if opts
-        .params
-        .sibson
-        .rmse
-        .is_some_and(|r| r.absolute(raster.valid_range()) == 0.0)
-    {
+    if opts.params.sibson.rmse.is_some_and(|r| match r {
+        ErrorBound::Abs(v) => v == 0.0,
+        ErrorBound::PercentOfRange(p) => p == 0.0,
+    }) {
         return Err(vtz::Error::invalid(
             "--rmse 0 asks the sites to reproduce every sample, which costs more than storing \
              them: use --lossless",
@@ -116,22 +123,32 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     opts.params.fis.s = a.fis_s;
     opts.target_bytes = target_bytes;
     opts.effort = a.effort;
-    let (bytes, report) = ui.progress("encoding", |p| {
-        vtz::encode_progress(&raster, &opts, &mut |f| p(f))
+    opts.tile = a.tile;
+    opts.threads = a.threads;
+    let mut out = vtz::formats::PendingFile::create(&output, a.force)?;
+    let tiles = vtz::tile_count(src.width(), src.height(), &opts);
+    let (_, report) = ui.progress_tiles("encoding", tiles, |p| {
+        vtz::encode_stream(&mut *src, &opts, out.writer(), &mut |f| p(f))
     })?;
-    let n = bytes.len() as u64;
-    vtz::formats::write_file(&output, bytes, a.force)?;
+    drop(src);
+    out.commit()?;
+    let info = vtz::Decoder::new(std::io::BufReader::new(
+        std::fs::File::open(&output).map_err(|e| vtz::Error::io(output.display().to_string(), e))?,
+    ))?
+    .info()
+    .clone();
+    let n = info.file_bytes;
     for (m, why) in &report.skipped {
         ui.say(format!("note: no {} section: {why}", m.name()));
     }
-    let raw = raster.len() as u64 * raster.sample_type.bits() as u64 / 8;
+    let raw = samples as u64 * info.sample_type.bits() as u64 / 8;
     if n > raw && !a.json {
         ui.say(format!(
             "warning: {n} bytes is more than the raw samples ({raw} bytes); --lossless or another --method may store this raster smaller"
         ));
     }
-    let bps = vtz::metrics::bits_per_sample(n, raster.len());
-    let range = raster.valid_range().map_or(0.0, |(lo, hi)| hi - lo);
+    let bps = vtz::metrics::bits_per_sample(n, samples);
+    let range = info.range.map_or(0.0, |(lo, hi)| hi - lo);
     let pct = if range > 0.0 {
         100.0 * report.max_error / range
     } else {
@@ -141,9 +158,10 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let stat = |k: &str| report.stats.as_ref().and_then(|s| s.get(k).cloned());
     if a.json {
         let j = serde_json::json!({
-            "input": a.input, "output": output, "bytes": n, "samples": raster.len(),
+            "input": a.input, "output": output, "bytes": n, "samples": samples,
+            "tiles": info.tiles.as_ref().map_or(1, |t| t.tiles.len()),
             "bits_per_sample": bps,
-            "ratio": raster.sample_type.bits() as f64 / bps.max(f64::MIN_POSITIVE),
+            "ratio": info.sample_type.bits() as f64 / bps.max(f64::MIN_POSITIVE),
             "max_error": report.max_error, "max_error_pct": pct,
             "lossless": report.max_error == 0.0,
             "method": report.method.name(),
@@ -176,9 +194,19 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         ui.say(format!(
             "{}: {n} bytes, {bps:.3} bits/sample ({:.1}:1 against {}), {what}",
             output.display(),
-            raster.sample_type.bits() as f64 / bps.max(f64::MIN_POSITIVE),
-            raster.sample_type.name()
+            info.sample_type.bits() as f64 / bps.max(f64::MIN_POSITIVE),
+            info.sample_type.name()
         ));
+        if let Some(t) = &info.tiles {
+            ui.say(format!(
+                "  {} tiles of {}x{} ({} x {})",
+                t.tiles.len(),
+                t.tile_width,
+                t.tile_height,
+                t.cols,
+                t.rows
+            ));
+        }
     }
     Ok(())
 }

@@ -16,6 +16,9 @@ pub struct Args {
     /// sites section; k, points and factors of an FIS section; levels of a Haar section.
     #[arg(long)]
     pub stats: bool,
+    /// Tiled files: list every tile (position, size, bytes, method, max error).
+    #[arg(long)]
+    pub tiles: bool,
 }
 
 pub fn run(a: Args, _ui: &Ui) -> Result<()> {
@@ -47,6 +50,19 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
         })
     });
     let stats = if a.stats { dec.stats()? } else { Vec::new() };
+    let tiles = info.tiles.as_ref().map(|t| {
+        serde_json::json!({
+            "tile_width": t.tile_width, "tile_height": t.tile_height,
+            "cols": t.cols, "rows": t.rows, "count": t.tiles.len(),
+            "index": t.tiles.iter().map(|e| serde_json::json!({
+                "tile": e.index, "x": e.window.x, "y": e.window.y,
+                "width": e.window.width, "height": e.window.height,
+                "offset": e.offset, "bytes": e.bytes, "method": e.method,
+                "valid": e.valid, "min": e.range.map(|r| r.0), "max": e.range.map(|r| r.1),
+                "max_error": e.max_error,
+            })).collect::<Vec<_>>(),
+        })
+    });
     if a.json {
         let mut j = serde_json::json!({
             "file": a.input, "bytes": info.file_bytes, "width": h.width, "height": h.height,
@@ -54,6 +70,7 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
             "value_scale": h.mapping.scale, "value_offset": h.mapping.offset,
             "nodata": h.nodata, "min": h.range.map(|r| r.0), "max": h.range.map(|r| r.1),
             "bits_per_sample": bps, "georef": georef, "sections": sections,
+            "version": if tiles.is_some() { 2 } else { 1 }, "tiles": tiles,
         });
         // One object per method with a section (grid has no statistics); the sibson
         // statistics keep their first key, "stats".
@@ -136,6 +153,47 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
     for st in &stats {
         for line in &st.lines {
             outln!("{line}");
+        }
+    }
+    if let Some(t) = &info.tiles {
+        let mut methods: Vec<(String, usize, u64)> = Vec::new();
+        for e in &t.tiles {
+            match methods.iter_mut().find(|m| m.0 == e.method) {
+                Some(m) => {
+                    m.1 += 1;
+                    m.2 += e.bytes;
+                }
+                None => methods.push((e.method.clone(), 1, e.bytes)),
+            }
+        }
+        let worst = t.tiles.iter().map(|e| e.max_error).fold(0.0, f64::max);
+        outln!(
+            "tiles         {} x {} = {} tiles of {} x {} (version 2), max error {}",
+            t.cols,
+            t.rows,
+            t.tiles.len(),
+            t.tile_width,
+            t.tile_height,
+            num(worst)
+        );
+        for (m, n, b) in &methods {
+            outln!("  {m:<9} {n:>6} tiles {b:>12} bytes");
+        }
+        if a.tiles {
+            outln!("  tile      x      y  width height      bytes method     max error");
+            for e in &t.tiles {
+                outln!(
+                    "  {:>4} {:>6} {:>6} {:>6} {:>6} {:>10} {:<9} {}",
+                    e.index,
+                    e.window.x,
+                    e.window.y,
+                    e.window.width,
+                    e.window.height,
+                    e.bytes,
+                    e.method,
+                    num(e.max_error)
+                );
+            }
         }
     }
     outln!("sections      {}", info.sections.len());

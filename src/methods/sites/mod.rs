@@ -498,9 +498,11 @@ pub fn render_scaled(
     Ok((out, out_mask, ow, oh))
 }
 
-/// Threads to use by default: what the machine offers.
+/// Threads to use by default: what the machine offers, or the caller's budget
+/// ([`crate::methods::with_threads`]).
 pub fn default_threads() -> usize {
-    std::thread::available_parallelism().map_or(1, |n| n.get())
+    crate::methods::thread_budget()
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
 }
 
 /// The most frequent valid value when it covers at least 5 % of the valid samples.

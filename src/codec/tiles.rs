@@ -1,0 +1,505 @@
+//! Tiled files (container version 2): a raster cut into tiles that encode on all cores and
+//! are written in tile order as they finish, and decodes that read only the tiles a window
+//! touches, band of tiles by band of tiles.
+
+use super::decode::{self, check_output};
+use super::encode::{EncodeReport, encode_parts};
+use super::options::{DecodeOptions, EncodeOptions, Scale, SectionChoice};
+use crate::container::tiled::{TileGrid, TiledReader, TiledWriter, tile_name, tile_block};
+use crate::container::{Header, SectionKind};
+use crate::error::{Error, Result};
+use crate::methods::{self, Method};
+use crate::model::{Raster, RowSource, Window};
+use crate::quant::ErrorBound;
+use std::io::{Read, Seek, Write};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// The tile side an encode uses unless told (`--tile`), picked by measurement
+/// (benches/README.md, "Tiles"): the bytes tiling costs against an untiled encode stay
+/// small while a tile decodes in milliseconds.
+pub const DEFAULT_TILE: u32 = 1024;
+
+/// Unless a tile side is given, a raster this large or smaller in both directions stays
+/// untiled: at 1201² and 1% a 2 × 2 grid of tiles costs 3–4 % of the bytes (at 10 %,
+/// 15 %: each tile's own framing, index entry and method header), which buys such a raster
+/// nothing a user would notice (benches/README.md, "Tiles").
+pub const DEFAULT_UNTILED_MAX: u32 = 2048;
+
+/// The threads to use for `n` (0 = what the machine offers).
+pub(crate) fn threads_for(n: usize) -> usize {
+    if n == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        n
+    }
+}
+
+fn pool(threads: usize) -> Result<rayon::ThreadPool> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads_for(threads))
+        .build()
+        .map_err(|e| Error::unsupported(format!("cannot start {threads} threads: {e}")))
+}
+
+/// Options that are whole-file notions: a size target, comparison sections, a site count
+/// or an RMSE target (a tile would meet each on its own).
+fn whole_file_options(opts: &EncodeOptions) -> bool {
+    opts.target_bytes.is_some()
+        || opts.methods.len() > 1
+        || opts.params.sibson.sites.is_some()
+        || opts.params.sibson.rmse.is_some()
+}
+
+/// Whether an encode of a `w × h` raster with these options is tiled.
+pub(crate) fn tiled(w: usize, h: usize, opts: &EncodeOptions) -> bool {
+    let t = match opts.tile {
+        Some(t) => t as usize,
+        None if whole_file_options(opts) => return false,
+        None if w <= DEFAULT_UNTILED_MAX as usize && h <= DEFAULT_UNTILED_MAX as usize => {
+            return false;
+        }
+        None => DEFAULT_TILE as usize,
+    };
+    t > 0 && (w > t || h > t)
+}
+
+/// The tiles an encode of a `w × h` raster with these options makes (1 when untiled).
+pub fn tile_count(w: usize, h: usize, opts: &EncodeOptions) -> u64 {
+    if !tiled(w, h, opts) {
+        return 1;
+    }
+    let t = opts.tile.unwrap_or(DEFAULT_TILE);
+    let (Ok(w), Ok(h)) = (u32::try_from(w), u32::try_from(h)) else {
+        return 1;
+    };
+    TileGrid::balanced(w, h, t).count()
+}
+
+/// Encode a raster read band by band into a version-2 file written to `out`: tiles go to
+/// the workers a few rows of tiles at a time and are written in tile order, so memory holds
+/// the tiles in flight, not the raster. `progress` gets the fraction of tiles done.
+pub fn encode_tiled<W: Write + Seek>(
+    src: &mut dyn RowSource,
+    opts: &EncodeOptions,
+    out: W,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(W, EncodeReport)> {
+    let tile = opts.tile.unwrap_or(DEFAULT_TILE);
+    if tile < crate::container::tiled::MIN_TILE {
+        return Err(Error::invalid(format!(
+            "a tile of {tile} samples is below the smallest, {}",
+            crate::container::tiled::MIN_TILE
+        )));
+    }
+    if whole_file_options(opts) {
+        return Err(Error::invalid(
+            "a size target, several methods, --sites and --rmse are whole-file requests: \
+             leave --tile out, or give --tile 0",
+        ));
+    }
+    if let Some(k) = opts.effort.filter(|k| !(1..=9).contains(k)) {
+        return Err(Error::invalid(format!("effort {k} is not in 1..=9")));
+    }
+    if let Some(meta) = &opts.metadata {
+        serde_json::from_str::<serde_json::Value>(meta)
+            .map_err(|e| Error::invalid(format!("metadata is not JSON: {e}")))?;
+    }
+    let (w, h) = (src.width(), src.height());
+    if w == 0 || h == 0 {
+        return Err(Error::invalid("the raster is empty"));
+    }
+    let (wu, hu) = (
+        u32::try_from(w).map_err(|_| Error::limit("raster wider than 2^32"))?,
+        u32::try_from(h).map_err(|_| Error::limit("raster taller than 2^32"))?,
+    );
+    if wu > i32::MAX as u32 || hu > i32::MAX as u32 {
+        return Err(Error::limit("raster dimension over 2^31 - 1"));
+    }
+    let grid = TileGrid::balanced(wu, hu, tile);
+    let (tw, th) = (grid.tile_w as usize, grid.tile_h as usize);
+    let first = src.band(0, 1)?;
+    let header = Header {
+        width: wu,
+        height: hu,
+        sample_type: first.sample_type,
+        primary: 0,
+        mapping: first.mapping,
+        nodata: first.nodata,
+        range: None,
+        georef: first.georef.clone(),
+    };
+    // A bound in % of the range needs the whole raster's range first: one pass of bands.
+    let e = match opts.max_error {
+        Some(ErrorBound::PercentOfRange(_)) => {
+            let mut range: Option<(f64, f64)> = None;
+            for y in (0..h).step_by(th) {
+                let b = src.band(y, th.min(h - y))?;
+                if let Some((lo, hi)) = b.valid_range() {
+                    range = Some(range.map_or((lo, hi), |(a, c)| (a.min(lo), c.max(hi))));
+                }
+            }
+            opts.max_error.map(|b| b.absolute(range))
+        }
+        b => b.map(|b| b.absolute(None)),
+    };
+    let mut topts = opts.clone();
+    topts.max_error = e.map(ErrorBound::Abs);
+    topts.metadata = None;
+    topts.tile = Some(0);
+    let mut global = Vec::new();
+    if let Some(meta) = &opts.metadata {
+        global.push(crate::container::Section {
+            kind: SectionKind::METADATA,
+            flags: 0,
+            payload: meta.as_bytes().to_vec(),
+        });
+    }
+    if let Some(xml) = &first.gdal_metadata {
+        global.push(crate::container::Section {
+            kind: SectionKind::GDAL_METADATA,
+            flags: 0,
+            payload: xml.as_bytes().to_vec(),
+        });
+    }
+    drop(first);
+    let mut writer = TiledWriter::new(out, &header, grid, &global)?;
+    let pool = pool(opts.threads)?;
+    let cols = grid.cols() as usize;
+    let rows = grid.rows() as usize;
+    let total = grid.count() as usize;
+    // Rows of tiles in flight: enough tiles to keep every worker busy.
+    let group = (2 * pool.current_num_threads()).div_ceil(cols).max(1);
+    let mut report = EncodeReport {
+        max_error: 0.0,
+        method: Method::GRID,
+        stats: None,
+        skipped: Vec::new(),
+        encoded: Vec::new(),
+    };
+    let mut counts: Vec<(Method, usize)> = Vec::new();
+    progress(0.0);
+    for r0 in (0..rows).step_by(group) {
+        let mut tiles: Vec<(usize, Raster)> = Vec::new();
+        for r in r0..(r0 + group).min(rows) {
+            let y = r * th;
+            let band = src.band(y, th.min(h - y))?;
+            for c in 0..cols {
+                let k = r * cols + c;
+                let win = grid.rect(k);
+                let mut t = band.crop(Window { y: 0, ..win });
+                t.georef = header.georef.as_ref().map(|g| g.window(win.x, win.y));
+                tiles.push((k, t));
+            }
+        }
+        let results: Vec<Result<_>> = pool.install(|| {
+            use rayon::prelude::*;
+            tiles
+                .par_iter()
+                .map(|(k, t)| {
+                    let r = methods::with_threads(1, || encode_parts(t, &topts, &mut |_| {}))
+                        .map_err(|e| e.context(tile_name(&grid, *k)));
+                    r.map(|(hd, sections, rep)| {
+                        let kind = sections[hd.primary as usize].kind;
+                        let block = tile_block(hd.primary, &sections);
+                        (block, kind, t.valid_count() as u64, hd.range, rep)
+                    })
+                })
+                .collect()
+        });
+        drop(tiles);
+        for res in results {
+            let (block, kind, valid, range, rep) = res?;
+            writer.push(&block, kind, valid, range, rep.max_error)?;
+            progress(writer.written() as f64 / total as f64);
+            report.max_error = report.max_error.max(rep.max_error);
+            match counts.iter_mut().find(|(m, _)| *m == rep.method) {
+                Some(c) => c.1 += 1,
+                None => counts.push((rep.method, 1)),
+            }
+            for m in rep.encoded {
+                if !report.encoded.contains(&m) {
+                    report.encoded.push(m);
+                }
+            }
+        }
+    }
+    // The method most tiles chose (the first such in tile order on a tie).
+    if let Some(&(m, _)) = counts.iter().max_by_key(|(_, n)| *n) {
+        report.method = counts
+            .iter()
+            .find(|(_, n)| *n == counts.iter().map(|c| c.1).max().unwrap_or(0))
+            .map_or(m, |c| c.0);
+    }
+    let out = writer.finish()?;
+    progress(1.0);
+    Ok((out, report))
+}
+
+/// Open a tiled file with the registry's section names.
+pub(crate) fn open<R: Read + Seek>(inner: R, limits: crate::container::Limits) -> Result<TiledReader<R>> {
+    TiledReader::new(inner, limits, decode::kind_names)
+}
+
+/// Decode a window of a tiled file band by band: for each row of tiles the window
+/// touches, its tiles are read, decoded on all cores and handed to `sink` as one band of
+/// the window's width. Gives back the tiles skipped as corrupt (`opts.skip_corrupt`).
+pub(crate) fn decode_bands<R: Read + Seek>(
+    rd: &mut TiledReader<R>,
+    opts: &DecodeOptions,
+    sink: &mut dyn FnMut(Raster) -> Result<()>,
+    progress: &(dyn Fn(f64) + Sync),
+) -> Result<Vec<String>> {
+    if opts.sites.is_some() || opts.levels.is_some() {
+        return Err(Error::invalid(
+            "--sites and --level need an untiled file (each tile has its own sites)",
+        ));
+    }
+    if let SectionChoice::Index(_) = opts.section {
+        return Err(Error::invalid(
+            "a tiled file's tiles have their own directories: choose a section by method name",
+        ));
+    }
+    let header = rd.header().clone();
+    let grid = rd.grid();
+    let (w, h) = (header.width as usize, header.height as usize);
+    let win = opts.window.unwrap_or(Window::full(w, h));
+    if win.width == 0
+        || win.height == 0
+        || win.x.checked_add(win.width).is_none_or(|e| e > w)
+        || win.y.checked_add(win.height).is_none_or(|e| e > h)
+    {
+        return Err(Error::invalid(format!(
+            "window {},{},{},{} is not inside the {w}x{h} raster",
+            win.x, win.y, win.width, win.height
+        )));
+    }
+    let th = grid.tile_h as usize;
+    check_output(
+        || format!("a band of {} x {} samples", win.width, th.min(win.height)),
+        (win.width as u64).checked_mul(th.min(win.height) as u64),
+        rd.limits(),
+    )?;
+    let gdal = rd
+        .global_section(SectionKind::GDAL_METADATA)?
+        .map(|b| {
+            String::from_utf8(b).map_err(|_| Error::corrupt("gdal-metadata section is not UTF-8"))
+        })
+        .transpose()?;
+    let lossy = rd.tiles().iter().any(|t| t.max_error != 0.0);
+    let gdal = if lossy || (win.width, win.height) != (w, h) {
+        gdal.map(|x| crate::formats::without_statistics(&x).into_owned())
+    } else {
+        gdal
+    };
+    let pool = pool(opts.threads)?;
+    let touched = grid.touching(win);
+    let total = touched.len().max(1);
+    let done = AtomicUsize::new(0);
+    let mut skipped = Vec::new();
+    let cols = grid.cols() as usize;
+    let (r0, r1) = (win.y / th, (win.y + win.height - 1) / th);
+    for r in r0..=r1 {
+        let band_y0 = (r * th).max(win.y);
+        let band_y1 = ((r + 1) * th).min(win.y + win.height);
+        let bh = band_y1 - band_y0;
+        let row_tiles: Vec<usize> = touched.iter().copied().filter(|k| k / cols == r).collect();
+        // Reading is sequential (one reader); decoding is parallel.
+        let mut blocks = Vec::with_capacity(row_tiles.len());
+        for &k in &row_tiles {
+            blocks.push((k, rd.tile_block(k)));
+        }
+        let opener = rd.opener();
+        let decoded: Vec<(usize, Result<Raster>)> = pool.install(|| {
+            use rayon::prelude::*;
+            blocks
+                .into_par_iter()
+                .map(|(k, block)| {
+                    let t = grid.rect(k);
+                    // The part of the window in this tile, in the tile's coordinates.
+                    let x0 = win.x.max(t.x);
+                    let x1 = (win.x + win.width).min(t.x + t.width);
+                    let sub = Window {
+                        x: x0 - t.x,
+                        y: band_y0 - t.y,
+                        width: x1 - x0,
+                        height: bh,
+                    };
+                    let res = block.and_then(|b| {
+                        let mut trd = opener.open(k, b)?;
+                        let o = DecodeOptions {
+                            window: Some(sub),
+                            threads: 1,
+                            scale: None,
+                            ..opts.clone()
+                        };
+                        methods::with_threads(1, || decode::decode_reader(&mut trd, &o, &|_| {}))
+                            .map_err(|e| e.context(tile_name(&grid, k)))
+                    });
+                    let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+                    progress(n as f64 / total as f64);
+                    (k, res)
+                })
+                .collect()
+        });
+        let fill = header.nodata.unwrap_or(f64::NAN);
+        let mut data = vec![fill; win.width * bh];
+        let mut mask = vec![true; win.width * bh];
+        for (k, res) in decoded {
+            let t = grid.rect(k);
+            let x0 = win.x.max(t.x);
+            let x1 = (win.x + win.width).min(t.x + t.width);
+            let tw = x1 - x0;
+            match res {
+                Ok(tr) => {
+                    for y in 0..bh {
+                        let o = y * win.width + (x0 - win.x);
+                        data[o..o + tw].copy_from_slice(&tr.data[y * tw..(y + 1) * tw]);
+                        if let Some(m) = &tr.mask {
+                            mask[o..o + tw].copy_from_slice(&m[y * tw..(y + 1) * tw]);
+                        }
+                    }
+                }
+                Err(e) if opts.skip_corrupt && matches!(e, Error::Corrupt { .. }) => {
+                    skipped.push(e.to_string());
+                    for y in 0..bh {
+                        let o = y * win.width + (x0 - win.x);
+                        mask[o..o + tw].fill(false);
+                    }
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        let any_invalid = mask.contains(&false);
+        let mut band = Raster {
+            width: win.width,
+            height: bh,
+            data,
+            mask: any_invalid.then_some(mask),
+            nodata: header.nodata,
+            sample_type: header.sample_type,
+            mapping: header.mapping,
+            georef: header.georef.as_ref().map(|g| g.window(win.x, band_y0)),
+            gdal_metadata: gdal.clone(),
+        };
+        band.normalize_mask();
+        sink(band)?;
+    }
+    Ok(skipped)
+}
+
+/// Decode a window (or all) of a tiled file into memory; with `opts.scale`, the decoded
+/// samples resampled bilinearly (continuous across tile borders by construction).
+pub(crate) fn decode_tiled<R: Read + Seek>(
+    rd: &mut TiledReader<R>,
+    opts: &DecodeOptions,
+    progress: &(dyn Fn(f64) + Sync),
+) -> Result<(Raster, Vec<String>)> {
+    let header = rd.header().clone();
+    let (w, h) = (header.width as usize, header.height as usize);
+    if let Some(s) = opts.scale {
+        if opts.window.is_some() {
+            return Err(Error::invalid("--scale and --window cannot be combined"));
+        }
+        let (ow, oh) = super::decode::scaled_size(w, h, s);
+        check_output(
+            || format!("a --scale of {}/{} makes a {ow}x{oh} raster", s.num, s.den),
+            ow.checked_mul(oh),
+            rd.limits(),
+        )?;
+    }
+    let win = opts.window.unwrap_or(Window::full(w, h));
+    check_output(
+        || format!("a decode of {} x {} samples", win.width, win.height),
+        (win.width as u64).checked_mul(win.height as u64),
+        rd.limits(),
+    )?;
+    let mut parts: Vec<Raster> = Vec::new();
+    let o = DecodeOptions {
+        scale: None,
+        ..opts.clone()
+    };
+    let skipped = decode_bands(rd, &o, &mut |b| {
+        parts.push(b);
+        Ok(())
+    }, progress)?;
+    let mut it = parts.into_iter();
+    let mut r = it.next().ok_or_else(|| Error::invalid("empty window"))?;
+    for b in it {
+        r.height += b.height;
+        let had = r.mask.is_some() || b.mask.is_some();
+        if had {
+            let n = r.data.len();
+            let m = r.mask.get_or_insert_with(|| vec![true; n]);
+            match &b.mask {
+                Some(bm) => m.extend_from_slice(bm),
+                None => m.extend(std::iter::repeat_n(true, b.data.len())),
+            }
+        }
+        r.data.extend_from_slice(&b.data);
+    }
+    r.normalize_mask();
+    if let Some(s) = opts.scale {
+        r = resample(&r, s);
+    }
+    Ok((r, skipped))
+}
+
+/// The raster resampled by `s`: output sample (i, j) sits at source position
+/// (i·den/num, j·den/num) and takes the bilinear blend of the four samples around it, each
+/// weight an exact fraction of `num`; it is nodata when a sample it needs is.
+fn resample(r: &Raster, s: Scale) -> Raster {
+    let (ow, oh) = super::decode::scaled_size(r.width, r.height, s);
+    let (ow, oh) = (ow as usize, oh as usize);
+    let (num, den) = (s.num as u64, s.den as u64);
+    let pos = |i: usize, n: usize| {
+        let p = i as u64 * den;
+        let a = ((p / num) as usize).min(n - 1);
+        let f = if a == n - 1 { 0 } else { p % num };
+        (a, f as f64 / num as f64)
+    };
+    let xs: Vec<(usize, f64)> = (0..ow).map(|i| pos(i, r.width)).collect();
+    let mut data = Vec::with_capacity(ow * oh);
+    let mut mask = Vec::with_capacity(ow * oh);
+    let st = r.sample_type;
+    for j in 0..oh {
+        let (y0, fy) = pos(j, r.height);
+        let y1 = if fy > 0.0 { y0 + 1 } else { y0 };
+        for &(x0, fx) in &xs {
+            let x1 = if fx > 0.0 { x0 + 1 } else { x0 };
+            let idx = [y0 * r.width + x0, y0 * r.width + x1, y1 * r.width + x0, y1 * r.width + x1];
+            if idx.iter().all(|&i| r.is_valid(i)) {
+                let v = (r.data[idx[0]] * (1.0 - fx) + r.data[idx[1]] * fx) * (1.0 - fy)
+                    + (r.data[idx[2]] * (1.0 - fx) + r.data[idx[3]] * fx) * fy;
+                data.push(crate::quant::finish(v, st, r.mapping));
+                mask.push(true);
+            } else {
+                data.push(r.nodata.unwrap_or(f64::NAN));
+                mask.push(false);
+            }
+        }
+    }
+    let f = s.den as f64 / s.num as f64;
+    let georef = r.georef.as_ref().map(|g| {
+        let mut g = g.clone();
+        if g.raster_type == crate::model::RasterType::Area {
+            g.origin[0] += 0.5 * g.pixel_size[0] * (1.0 - f);
+            g.origin[1] -= 0.5 * g.pixel_size[1] * (1.0 - f);
+        }
+        g.pixel_size = [g.pixel_size[0] * f, g.pixel_size[1] * f];
+        g
+    });
+    let mut out = Raster {
+        width: ow,
+        height: oh,
+        data,
+        mask: Some(mask),
+        georef,
+        gdal_metadata: r
+            .gdal_metadata
+            .as_ref()
+            .map(|x| crate::formats::without_statistics(x).into_owned()),
+        ..r.clone_meta()
+    };
+    out.normalize_mask();
+    out
+}

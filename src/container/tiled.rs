@@ -1,0 +1,626 @@
+//! Version-2 framing: the tile grid, the global and tile blocks, and the tile index that a
+//! reader finds from the header (spec/FORMAT.md, "Version 2: tiled files").
+
+use super::bytes::{ByteReader, PutLe};
+use super::{
+    ContainerReader, DIR_ENTRY_LEN, Header, KindNames, Limits, MAGIC, Section, SectionEntry,
+    SectionKind, checksum_ok, read_directory, read_exact,
+};
+use crate::error::{Error, Result};
+use crate::model::Window;
+use std::io::{Cursor, Read, Seek, SeekFrom, Write};
+
+/// The container version of tiled files.
+pub const VERSION_TILED: u16 = 2;
+/// Bytes of one tile index entry.
+pub const INDEX_ENTRY_LEN: usize = 56;
+/// Smallest tile side a file may declare (unless the raster itself is smaller).
+pub const MIN_TILE: u32 = 16;
+/// Bytes of the tile fields at the end of a version-2 header body.
+const TILE_FIELDS_LEN: usize = 24;
+/// Index entry flag: the tile has valid samples, and its minimum and maximum are set.
+const TF_RANGE: u16 = 1;
+
+/// How a raster is cut into tiles: row-major, each `tile_w × tile_h` but the last column
+/// and row, which hold what is left.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TileGrid {
+    /// Raster width.
+    pub width: u32,
+    /// Raster height.
+    pub height: u32,
+    /// Tile width (the last column may be narrower).
+    pub tile_w: u32,
+    /// Tile height (the last row may be shorter).
+    pub tile_h: u32,
+}
+
+impl TileGrid {
+    /// The grid an encoder picks for tiles of side at most `tile`: as many tiles per axis
+    /// as that side needs, of equal size but for the last (no sliver of a few samples).
+    pub fn balanced(width: u32, height: u32, tile: u32) -> TileGrid {
+        let side = |n: u32| {
+            let t = tile.max(1);
+            let count = n.div_ceil(t);
+            n.div_ceil(count.max(1))
+        };
+        TileGrid {
+            width,
+            height,
+            tile_w: side(width),
+            tile_h: side(height),
+        }
+    }
+    /// Tiles per row.
+    pub fn cols(&self) -> u32 {
+        self.width.div_ceil(self.tile_w)
+    }
+    /// Rows of tiles.
+    pub fn rows(&self) -> u32 {
+        self.height.div_ceil(self.tile_h)
+    }
+    /// Number of tiles.
+    pub fn count(&self) -> u64 {
+        self.cols() as u64 * self.rows() as u64
+    }
+    /// The samples tile `k` covers.
+    pub fn rect(&self, k: usize) -> Window {
+        let (c, r) = (k as u32 % self.cols(), k as u32 / self.cols());
+        let (x, y) = (c * self.tile_w, r * self.tile_h);
+        Window {
+            x: x as usize,
+            y: y as usize,
+            width: self.tile_w.min(self.width - x) as usize,
+            height: self.tile_h.min(self.height - y) as usize,
+        }
+    }
+    /// The tiles a window touches, row-major.
+    pub fn touching(&self, w: Window) -> Vec<usize> {
+        if w.width == 0 || w.height == 0 {
+            return Vec::new();
+        }
+        let (tw, th) = (self.tile_w as usize, self.tile_h as usize);
+        let (c0, c1) = (w.x / tw, (w.x + w.width - 1) / tw);
+        let (r0, r1) = (w.y / th, (w.y + w.height - 1) / th);
+        let cols = self.cols() as usize;
+        (r0..=r1)
+            .flat_map(|r| (c0..=c1).map(move |c| r * cols + c))
+            .collect()
+    }
+    fn check(&self) -> Result<()> {
+        let ok = |t: u32, n: u32| t >= 1 && t <= n && (t >= MIN_TILE || t == n);
+        if !ok(self.tile_w, self.width) || !ok(self.tile_h, self.height) {
+            return Err(Error::corrupt(format!(
+                "header: tile size {}x{} is out of range for a {}x{} raster",
+                self.tile_w, self.tile_h, self.width, self.height
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// One tile's entry in the index: where its block is and what it holds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TileEntry {
+    /// Byte offset of the tile's block in the file.
+    pub offset: u64,
+    /// Bytes of the block.
+    pub length: u64,
+    /// CRC-32 of the block.
+    pub crc: u32,
+    /// The type of the tile's primary section (its method).
+    pub kind: SectionKind,
+    /// Valid samples in the tile.
+    pub valid: u64,
+    /// (min, max) of the tile's valid source samples; `None` when it has none.
+    pub range: Option<(f64, f64)>,
+    /// The max error the tile's encoder achieved (0 = lossless).
+    pub max_error: f64,
+}
+
+/// The bytes of a section directory (count, entries, checksum) followed by the payloads.
+pub(crate) fn directory_bytes(out: &mut Vec<u8>, sections: &[Section]) {
+    let dir_start = out.len();
+    out.put_u32(sections.len() as u32);
+    for s in sections {
+        out.put_u16(s.kind.code());
+        out.put_u16(s.flags);
+        out.put_u32(crc32fast::hash(&s.payload));
+        out.put_u64(s.payload.len() as u64);
+    }
+    let crc = crc32fast::hash(&out[dir_start..]);
+    out.put_u32(crc);
+    for s in sections {
+        out.extend_from_slice(&s.payload);
+    }
+}
+
+/// A tile's block: its primary section index, a reserved zero, then its directory and
+/// sections.
+pub fn tile_block(primary: u16, sections: &[Section]) -> Vec<u8> {
+    let payload: usize = sections.iter().map(|s| s.payload.len()).sum();
+    let mut out = Vec::with_capacity(8 + sections.len() * DIR_ENTRY_LEN + 4 + payload);
+    out.put_u16(primary);
+    out.put_u16(0);
+    directory_bytes(&mut out, sections);
+    out
+}
+
+/// The fixed part and header of a version-2 file. `header.primary` must be 0 and
+/// `header.range` is not stored (the index holds each tile's).
+fn head_bytes(header: &Header, grid: &TileGrid, index_offset: u64, index_len: u64) -> Vec<u8> {
+    let mut h = header.clone();
+    h.primary = 0;
+    h.range = None;
+    let mut body = h.to_bytes();
+    body.put_u32(grid.tile_w);
+    body.put_u32(grid.tile_h);
+    body.put_u64(index_offset);
+    body.put_u64(index_len);
+    let mut out = Vec::with_capacity(20 + body.len());
+    out.extend_from_slice(&MAGIC);
+    out.put_u16(VERSION_TILED);
+    out.put_u16(0);
+    out.put_u32(body.len() as u32);
+    out.extend_from_slice(&body);
+    let crc = crc32fast::hash(&out);
+    out.put_u32(crc);
+    out
+}
+
+/// Writes a version-2 file to any seekable sink: the header (its index position filled in
+/// at the end), the global sections, then tile blocks in tile order, then the index.
+pub struct TiledWriter<W: Write + Seek> {
+    out: W,
+    header: Header,
+    grid: TileGrid,
+    entries: Vec<TileEntry>,
+    pos: u64,
+}
+
+impl<W: Write + Seek> TiledWriter<W> {
+    /// Start a file: writes the header and the global sections (metadata, GDAL metadata).
+    pub fn new(mut out: W, header: &Header, grid: TileGrid, global: &[Section]) -> Result<Self> {
+        let head = head_bytes(header, &grid, 0, 0);
+        let mut block = Vec::new();
+        directory_bytes(&mut block, global);
+        let io = |e| Error::io("writing the file", e);
+        out.write_all(&head).map_err(io)?;
+        out.write_all(&block).map_err(io)?;
+        Ok(TiledWriter {
+            out,
+            header: header.clone(),
+            grid,
+            entries: Vec::with_capacity(grid.count().min(1 << 20) as usize),
+            pos: (head.len() + block.len()) as u64,
+        })
+    }
+    /// Tiles written so far.
+    pub fn written(&self) -> usize {
+        self.entries.len()
+    }
+    /// Append the next tile's block (tiles must come in tile order).
+    pub fn push(
+        &mut self,
+        block: &[u8],
+        kind: SectionKind,
+        valid: u64,
+        range: Option<(f64, f64)>,
+        max_error: f64,
+    ) -> Result<()> {
+        if self.entries.len() as u64 >= self.grid.count() {
+            return Err(Error::invalid("more tiles than the grid has"));
+        }
+        self.out
+            .write_all(block)
+            .map_err(|e| Error::io("writing the file", e))?;
+        self.entries.push(TileEntry {
+            offset: self.pos,
+            length: block.len() as u64,
+            crc: crc32fast::hash(block),
+            kind,
+            valid,
+            range,
+            max_error,
+        });
+        self.pos += block.len() as u64;
+        Ok(())
+    }
+    /// Write the index and the header's pointer to it; gives back the sink.
+    pub fn finish(mut self) -> Result<W> {
+        if self.entries.len() as u64 != self.grid.count() {
+            return Err(Error::invalid(format!(
+                "{} of {} tiles were written",
+                self.entries.len(),
+                self.grid.count()
+            )));
+        }
+        let mut idx = Vec::with_capacity(8 + self.entries.len() * INDEX_ENTRY_LEN);
+        idx.put_u32(self.entries.len() as u32);
+        for e in &self.entries {
+            idx.put_u64(e.offset);
+            idx.put_u64(e.length);
+            idx.put_u32(e.crc);
+            idx.put_u16(e.kind.code());
+            idx.put_u16(if e.range.is_some() { TF_RANGE } else { 0 });
+            idx.put_u64(e.valid);
+            let (lo, hi) = e.range.unwrap_or((0.0, 0.0));
+            idx.put_f64(lo);
+            idx.put_f64(hi);
+            idx.put_f64(e.max_error);
+        }
+        let crc = crc32fast::hash(&idx);
+        idx.put_u32(crc);
+        let io = |e| Error::io("writing the file", e);
+        self.out.write_all(&idx).map_err(io)?;
+        let head = head_bytes(&self.header, &self.grid, self.pos, idx.len() as u64);
+        self.out.seek(SeekFrom::Start(0)).map_err(io)?;
+        self.out.write_all(&head).map_err(io)?;
+        self.out.seek(SeekFrom::End(0)).map_err(io)?;
+        self.out.flush().map_err(io)?;
+        Ok(self.out)
+    }
+}
+
+/// The version of a `.vtz` file (after checking its magic); the reader is left at the start.
+pub fn peek_version<R: Read + Seek>(inner: &mut R) -> Result<u16> {
+    let file_len = inner
+        .seek(SeekFrom::End(0))
+        .map_err(|e| Error::io("measuring the file", e))?;
+    inner
+        .seek(SeekFrom::Start(0))
+        .map_err(|e| Error::io("seeking", e))?;
+    let n = file_len.min(10) as usize;
+    let mut head = vec![0u8; n];
+    read_exact(inner, &mut head, "file start")?;
+    inner
+        .seek(SeekFrom::Start(0))
+        .map_err(|e| Error::io("seeking", e))?;
+    if n < 10 {
+        if MAGIC.starts_with(&head[..n.min(8)]) {
+            return Err(Error::corrupt("file is truncated in the file start"));
+        }
+        return Err(Error::corrupt("not a vtz file (bad magic)"));
+    }
+    if head[..8] != MAGIC {
+        return Err(Error::corrupt("not a vtz file (bad magic)"));
+    }
+    Ok(u16::from_le_bytes([head[8], head[9]]))
+}
+
+/// Reads a version-2 file: the header and the index on opening (two reads), then any tile
+/// on demand.
+pub struct TiledReader<R> {
+    inner: R,
+    header: Header,
+    grid: TileGrid,
+    tiles: Vec<TileEntry>,
+    global: Vec<SectionEntry>,
+    limits: Limits,
+    names: KindNames,
+}
+
+impl<R: Read + Seek> TiledReader<R> {
+    /// Open a version-2 file and check its framing: header checksum and fields, the index's
+    /// checksum, that the tile blocks lie back to back between the global sections and the
+    /// index, each entry's fields, and that the index ends the file.
+    pub fn new(mut inner: R, limits: Limits, names: KindNames) -> Result<Self> {
+        let file_len = inner
+            .seek(SeekFrom::End(0))
+            .map_err(|e| Error::io("measuring the file", e))?;
+        inner
+            .seek(SeekFrom::Start(0))
+            .map_err(|e| Error::io("seeking", e))?;
+        if file_len < 16 {
+            return Err(Error::corrupt("file is truncated in the file start"));
+        }
+        let mut fixed = [0u8; 16];
+        read_exact(&mut inner, &mut fixed, "file start")?;
+        if fixed[..8] != MAGIC {
+            return Err(Error::corrupt("not a vtz file (bad magic)"));
+        }
+        let version = u16::from_le_bytes([fixed[8], fixed[9]]);
+        if version != VERSION_TILED {
+            return Err(Error::unsupported(format!("vtz format version {version}")));
+        }
+        let req = u16::from_le_bytes([fixed[10], fixed[11]]);
+        if req != 0 {
+            return Err(Error::unsupported(format!(
+                "required feature flags 0x{req:04x} are not known to this decoder"
+            )));
+        }
+        let hlen = u32::from_le_bytes([fixed[12], fixed[13], fixed[14], fixed[15]]);
+        if hlen > super::header::MAX_HEADER_LEN {
+            return Err(Error::corrupt(format!(
+                "header length {hlen} is over the limit of {}",
+                super::header::MAX_HEADER_LEN
+            )));
+        }
+        if 16 + hlen as u64 + 4 > file_len {
+            return Err(Error::corrupt("file is truncated in the header"));
+        }
+        let mut hbuf = vec![0u8; hlen as usize + 4];
+        read_exact(&mut inner, &mut hbuf, "header")?;
+        let (body, crc_bytes) = hbuf.split_at(hlen as usize);
+        let mut h = crc32fast::Hasher::new();
+        h.update(&fixed);
+        h.update(body);
+        if !checksum_ok(h.finalize(), crc_bytes) {
+            return Err(Error::corrupt("header checksum mismatch"));
+        }
+        if body.len() < TILE_FIELDS_LEN {
+            return Err(Error::corrupt("header: too short for the tile fields"));
+        }
+        let mut r = ByteReader::new(body, "header");
+        let mut header = Header::read_fields(&mut r)?;
+        if header.primary != 0 || header.range.is_some() {
+            return Err(r.corrupt("a tiled file's header has no primary section and no range"));
+        }
+        let grid = TileGrid {
+            width: header.width,
+            height: header.height,
+            tile_w: r.u32("tile width")?,
+            tile_h: r.u32("tile height")?,
+        };
+        let index_offset = r.u64("index offset")?;
+        let index_len = r.u64("index length")?;
+        r.finish()?;
+        grid.check()?;
+        let n = grid.count();
+        let global_start = 16 + hlen as u64 + 4;
+        let want = 8 + n.saturating_mul(INDEX_ENTRY_LEN as u64);
+        if index_len != want {
+            return Err(Error::corrupt(format!(
+                "header: the index of {n} tiles needs {want} bytes, the header says {index_len}"
+            )));
+        }
+        if index_len > limits.max_section_bytes {
+            return Err(Error::limit(format!(
+                "tile index of {index_len} bytes is over the limit of {}",
+                limits.max_section_bytes
+            )));
+        }
+        match index_offset.checked_add(index_len) {
+            Some(end) if index_offset >= global_start && end <= file_len => {
+                if end != file_len {
+                    return Err(Error::corrupt(format!(
+                        "{} unexpected bytes after the tile index",
+                        file_len - end
+                    )));
+                }
+            }
+            _ => {
+                return Err(Error::corrupt(format!(
+                    "file is truncated (or the header is corrupt): the tile index should be at bytes {index_offset}..{} of a {file_len}-byte file",
+                    index_offset.saturating_add(index_len)
+                )));
+            }
+        }
+        inner
+            .seek(SeekFrom::Start(index_offset))
+            .map_err(|e| Error::io("seeking", e))?;
+        let mut ibuf = vec![0u8; index_len as usize];
+        read_exact(&mut inner, &mut ibuf, "tile index")?;
+        let (ib, crc_bytes) = ibuf.split_at(ibuf.len() - 4);
+        if !checksum_ok(crc32fast::hash(ib), crc_bytes) {
+            return Err(Error::corrupt("tile index checksum mismatch"));
+        }
+        let mut r = ByteReader::new(ib, "tile index");
+        let count = r.u32("tile count")? as u64;
+        if count != n {
+            return Err(r.corrupt(format!("{count} tiles listed, the grid has {n}")));
+        }
+        let mut tiles = Vec::with_capacity(n as usize);
+        let mut first = None;
+        let mut expect: Option<u64> = None;
+        for k in 0..n as usize {
+            let t = |m: String| {
+                let w = grid.rect(k);
+                Error::corrupt(format!("tile index: tile {k} (at {},{}): {m}", w.x, w.y))
+            };
+            let offset = r.u64("offset")?;
+            let length = r.u64("length")?;
+            let crc = r.u32("checksum")?;
+            let kind = SectionKind::from_code(r.u16("method")?);
+            let flags = r.u16("flags")?;
+            let valid = r.u64("valid count")?;
+            let lo = r.f64("minimum")?;
+            let hi = r.f64("maximum")?;
+            let max_error = r.f64("max error")?;
+            if let Some(e) = expect {
+                if offset != e {
+                    return Err(t(format!(
+                        "starts at byte {offset}, the previous tile ends at {e} (tiles lie back to back in tile order)"
+                    )));
+                }
+            }
+            let end = offset
+                .checked_add(length)
+                .filter(|&e| offset >= global_start && e <= index_offset)
+                .ok_or_else(|| {
+                    t(format!(
+                        "bytes {offset}..+{length} are outside the tiles' part of the file"
+                    ))
+                })?;
+            if length < 12 {
+                return Err(t(format!("a block of {length} bytes is too short")));
+            }
+            if length > limits.max_section_bytes {
+                return Err(Error::limit(format!(
+                    "tile {k} of {length} bytes is over the limit of {}",
+                    limits.max_section_bytes
+                )));
+            }
+            if kind.code() == 0 || !kind.may_be_primary() {
+                return Err(t(format!("method type {} is not a representation", kind.0)));
+            }
+            if flags & !TF_RANGE != 0 {
+                return Err(t(format!("unknown flags 0x{:04x}", flags & !TF_RANGE)));
+            }
+            let w = grid.rect(k);
+            if valid > (w.width * w.height) as u64 {
+                return Err(t(format!(
+                    "{valid} valid samples in a {}x{} tile",
+                    w.width, w.height
+                )));
+            }
+            let range = if flags & TF_RANGE != 0 {
+                if !(lo.is_finite() && hi.is_finite() && lo <= hi) || valid == 0 {
+                    return Err(t(format!("range {lo}..{hi} is not valid")));
+                }
+                Some((lo, hi))
+            } else {
+                if valid != 0 || lo.to_bits() != 0 || hi.to_bits() != 0 {
+                    return Err(t("no range flag, but a valid count or range".into()));
+                }
+                None
+            };
+            if !(max_error.is_finite() && max_error >= 0.0) {
+                return Err(t(format!("max error {max_error} is not valid")));
+            }
+            first.get_or_insert(offset);
+            expect = Some(end);
+            tiles.push(TileEntry {
+                offset,
+                length,
+                crc,
+                kind,
+                valid,
+                range,
+                max_error,
+            });
+        }
+        r.finish()?;
+        if expect != Some(index_offset) {
+            return Err(Error::corrupt(
+                "tile index: the last tile does not end where the index starts",
+            ));
+        }
+        let global_end = first.expect("a grid has at least one tile");
+        let global = read_directory(&mut inner, global_start, global_end, &limits, names, "global sections")?;
+        if global.iter().any(|e| e.kind.may_be_primary() || e.kind == SectionKind::MASK) {
+            return Err(Error::corrupt(
+                "global sections: only metadata sections belong there",
+            ));
+        }
+        header.range = tiles.iter().filter_map(|t| t.range).reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)));
+        Ok(TiledReader {
+            inner,
+            header,
+            grid,
+            tiles,
+            global,
+            limits,
+            names,
+        })
+    }
+
+    /// The raster's header (its range is the union of the tiles').
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+    /// The tile grid.
+    pub fn grid(&self) -> TileGrid {
+        self.grid
+    }
+    /// The index.
+    pub fn tiles(&self) -> &[TileEntry] {
+        &self.tiles
+    }
+    /// The global sections' directory.
+    pub fn global(&self) -> &[SectionEntry] {
+        &self.global
+    }
+    /// The limits the file was opened with.
+    pub fn limits(&self) -> &Limits {
+        &self.limits
+    }
+
+    /// The payload of the first global section of `kind` (checksum checked), if any.
+    pub fn global_section(&mut self, kind: SectionKind) -> Result<Option<Vec<u8>>> {
+        let Some(e) = self.global.iter().find(|e| e.kind == kind).cloned() else {
+            return Ok(None);
+        };
+        let buf = self.read_at(e.offset, e.length, &format!("{} section", e.name))?;
+        if !checksum_ok(crc32fast::hash(&buf), &e.crc.to_le_bytes()) {
+            return Err(Error::corrupt(format!("{} section: checksum mismatch", e.name)));
+        }
+        Ok(Some(buf))
+    }
+
+    fn read_at(&mut self, offset: u64, length: u64, what: &str) -> Result<Vec<u8>> {
+        self.inner
+            .seek(SeekFrom::Start(offset))
+            .map_err(|e| Error::io("seeking", e))?;
+        // Offsets and lengths were checked against the file's length when opening.
+        let mut buf = vec![0u8; length as usize];
+        read_exact(&mut self.inner, &mut buf, what)?;
+        Ok(buf)
+    }
+
+    /// Tile `k`'s block, its checksum checked.
+    pub fn tile_block(&mut self, k: usize) -> Result<Vec<u8>> {
+        let e = self
+            .tiles
+            .get(k)
+            .ok_or_else(|| Error::invalid(format!("no tile {k}")))?
+            .clone();
+        let name = tile_name(&self.grid, k);
+        let buf = self.read_at(e.offset, e.length, &name)?;
+        if !checksum_ok(crc32fast::hash(&buf), &e.crc.to_le_bytes()) {
+            return Err(Error::corrupt(format!("{name}: checksum mismatch")));
+        }
+        Ok(buf)
+    }
+
+    /// What opening a tile needs, without the reader (shareable across threads).
+    pub fn opener(&self) -> TileOpener<'_> {
+        TileOpener {
+            header: &self.header,
+            grid: self.grid,
+            tiles: &self.tiles,
+            limits: self.limits,
+            names: self.names,
+        }
+    }
+}
+
+/// Opens tiles whose blocks were read ([`TiledReader::tile_block`]).
+#[derive(Clone, Copy)]
+pub struct TileOpener<'a> {
+    header: &'a Header,
+    grid: TileGrid,
+    tiles: &'a [TileEntry],
+    limits: Limits,
+    names: KindNames,
+}
+
+impl TileOpener<'_> {
+    /// A container reader over tile `k`'s block, with the tile's header.
+    pub fn open(&self, k: usize, block: Vec<u8>) -> Result<ContainerReader<Cursor<Vec<u8>>>> {
+        let w = self.grid.rect(k);
+        let e = &self.tiles[k];
+        let h = Header {
+            width: w.width as u32,
+            height: w.height as u32,
+            primary: 0,
+            range: e.range,
+            georef: self.header.georef.as_ref().map(|g| g.window(w.x, w.y)),
+            ..self.header.clone()
+        };
+        let name = tile_name(&self.grid, k);
+        let rd = ContainerReader::tile(Cursor::new(block), h, self.limits, self.names, &name)?;
+        if rd.entries().get(rd.header().primary as usize).map(|s| s.kind) != Some(e.kind) {
+            return Err(Error::corrupt(format!(
+                "{name}: its primary section is not the method the index names"
+            )));
+        }
+        Ok(rd)
+    }
+}
+
+/// How errors name tile `k`: its number and its top-left sample.
+pub fn tile_name(grid: &TileGrid, k: usize) -> String {
+    let w = grid.rect(k);
+    format!("tile {k} (at {},{})", w.x, w.y)
+}

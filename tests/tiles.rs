@@ -1,0 +1,342 @@
+//! Tiled files (container version 2): the bound on every sample, bytes independent of the
+//! thread count, windows equal to crops of the full decode, reads limited to the tiles a
+//! window touches, continuity of resampled surfaces across tile borders, and corrupt
+//! indexes and tiles rejected with clear errors.
+
+mod common;
+
+use common::{Kind, bits, decode_opts, encode_opts, terrain};
+use std::io::{Cursor, Read, Seek, SeekFrom};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use vtz::{Decoder, EncodeOptions, Error, ErrorBound, Method, Raster, SampleType, Window};
+
+fn tiled_opts(methods: &[Method], e: Option<f64>, tile: u32, threads: usize) -> EncodeOptions {
+    let mut o = encode_opts(methods, e.map(ErrorBound::Abs));
+    o.tile = Some(tile);
+    o.threads = threads;
+    o
+}
+
+fn source() -> Raster {
+    terrain(Kind::Fbm, 150, 110, 7, true, SampleType::I16)
+}
+
+fn max_err(a: &Raster, b: &Raster) -> f64 {
+    (0..a.len())
+        .filter(|&i| a.is_valid(i))
+        .map(|i| (a.data[i] - b.data[i]).abs())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn every_method_round_trips_within_the_bound_over_tiles() {
+    let src = source();
+    for (m, e) in [
+        (Method::SIBSON, 3.0),
+        (Method::RESIDUAL, 2.0),
+        (Method::GRID, 0.0),
+        (Method::HAAR, 4.0),
+        (Method::FIS, 40.0),
+    ] {
+        let bytes = vtz::encode(&src, &tiled_opts(&[m], Some(e), 40, 0)).unwrap();
+        let info = vtz::info(&bytes, Default::default()).unwrap();
+        let t = info.tiles.as_ref().expect("a tiled file");
+        assert_eq!((t.cols, t.rows), (4, 3), "{}", m.name());
+        let section = if m == Method::SIBSON { "sites" } else { m.name() };
+        assert!(t.tiles.iter().all(|x| x.method == section), "{}", m.name());
+        let d = vtz::decode(&bytes).unwrap();
+        assert_eq!(d.mask, src.mask, "{}: nodata kept", m.name());
+        let me = max_err(&src, &d);
+        assert!(me <= e, "{}: max error {me} over {e}", m.name());
+        let v = Decoder::new(Cursor::new(&bytes)).unwrap().verify().unwrap();
+        assert_eq!(v.valid, src.valid_count() as u64);
+    }
+}
+
+#[test]
+fn a_percent_bound_is_of_the_whole_rasters_range() {
+    let src = source();
+    let (lo, hi) = src.valid_range().unwrap();
+    let mut o = tiled_opts(&[], None, 40, 0);
+    o.max_error = Some(ErrorBound::PercentOfRange(2.0));
+    let (bytes, rep) = vtz::encode_report(&src, &o).unwrap();
+    let e = (hi - lo) * 0.02;
+    assert!(rep.max_error <= e);
+    assert!(max_err(&src, &vtz::decode(&bytes).unwrap()) <= e);
+    let info = vtz::info(&bytes, Default::default()).unwrap();
+    assert_eq!(info.range, Some((lo, hi)), "the file's range is the tiles' union");
+}
+
+#[test]
+fn bytes_and_decodes_are_the_same_for_any_thread_count() {
+    let src = source();
+    let first = vtz::encode(&src, &tiled_opts(&[], Some(2.0), 32, 1)).unwrap();
+    for t in [2, 3, 7] {
+        let b = vtz::encode(&src, &tiled_opts(&[], Some(2.0), 32, t)).unwrap();
+        assert!(b == first, "{t} threads wrote other bytes");
+    }
+    let full = vtz::decode(&first).unwrap();
+    for t in [1, 2, 5] {
+        let d = vtz::decode_with(&first, &decode_opts(|o| o.threads = t)).unwrap();
+        assert_eq!(bits(&d), bits(&full), "{t} threads");
+    }
+}
+
+#[test]
+fn a_window_is_the_crop_of_the_full_decode_bit_for_bit() {
+    let src = terrain(Kind::Hill, 130, 90, 3, true, SampleType::F32);
+    for m in [Method::SIBSON, Method::RESIDUAL, Method::HAAR] {
+        let bytes = vtz::encode(&src, &tiled_opts(&[m], Some(1.5), 32, 0)).unwrap();
+        let full = vtz::decode(&bytes).unwrap();
+        let mut s = 12345u64;
+        let mut rnd = |n: usize| {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
+            ((s >> 33) % n as u64) as usize
+        };
+        for _ in 0..12 {
+            let (x, y) = (rnd(129), rnd(89));
+            let (w, h) = (1 + rnd(130 - x), 1 + rnd(90 - y));
+            let win = Window { x, y, width: w, height: h };
+            let d = vtz::decode_with(&bytes, &decode_opts(|o| o.window = Some(win))).unwrap();
+            for j in 0..h {
+                for i in 0..w {
+                    let a = d.data[j * w + i].to_bits();
+                    let b = full.data[(y + j) * 130 + x + i].to_bits();
+                    assert_eq!(a, b, "{}: window {win:?} at ({i},{j})", m.name());
+                }
+            }
+            assert_eq!(d.georef, full.georef.as_ref().map(|g| g.window(x, y)));
+        }
+    }
+}
+
+/// A reader that counts the bytes read through it.
+struct Counting<R> {
+    inner: R,
+    read: Arc<AtomicU64>,
+}
+
+impl<R: Read> Read for Counting<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.read.fetch_add(n as u64, Ordering::Relaxed);
+        Ok(n)
+    }
+}
+impl<R: Seek> Seek for Counting<R> {
+    fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
+        self.inner.seek(pos)
+    }
+}
+
+#[test]
+fn a_window_reads_the_header_the_index_and_only_the_tiles_it_touches() {
+    let src = terrain(Kind::Fbm, 256, 256, 11, false, SampleType::I16);
+    let bytes = vtz::encode(&src, &tiled_opts(&[], Some(1.0), 64, 0)).unwrap();
+    let info = vtz::info(&bytes, Default::default()).unwrap();
+    let t = info.tiles.clone().unwrap();
+    assert_eq!(t.tiles.len(), 16);
+    let index_start = t.tiles.last().map(|e| e.offset + e.bytes).unwrap();
+    let head = t.tiles[0].offset; // header + global sections
+    let index = bytes.len() as u64 - index_start;
+    for (win, touched) in [
+        (Window { x: 10, y: 10, width: 20, height: 20 }, vec![0]),
+        (Window { x: 60, y: 70, width: 10, height: 10 }, vec![4, 5]),
+        (Window { x: 120, y: 120, width: 20, height: 20 }, vec![5, 6, 9, 10]),
+    ] {
+        let read = Arc::new(AtomicU64::new(0));
+        let r = Counting {
+            inner: Cursor::new(&bytes),
+            read: read.clone(),
+        };
+        let mut d = Decoder::new(r).unwrap();
+        d.window(win).decode().unwrap();
+        let tiles: u64 = touched.iter().map(|&k| t.tiles[k].bytes).sum();
+        let n = read.load(Ordering::Relaxed);
+        // 10 bytes: the magic and version, read once to tell the versions apart.
+        assert_eq!(
+            n,
+            10 + head + index + tiles,
+            "window {win:?}: read {n} bytes, header+globals {head}, index {index}, tiles {tiles}"
+        );
+        assert!(n < bytes.len() as u64 / 2);
+    }
+}
+
+#[test]
+fn resampling_is_continuous_across_tile_borders() {
+    let src = terrain(Kind::Hill, 96, 64, 5, false, SampleType::F32);
+    let bytes = vtz::encode(&src, &tiled_opts(&[Method::SIBSON], Some(2.0), 32, 0)).unwrap();
+    let d = vtz::decode(&bytes).unwrap();
+    let s = vtz::decode_with(&bytes, &decode_opts(|o| o.scale = Some("2".parse().unwrap())))
+        .unwrap();
+    assert_eq!((s.width, s.height), (191, 127));
+    // Every resampled point between two samples (across a tile border or not) is their
+    // midpoint: the surface has no step at x = 32 or 64, y = 32.
+    for y in 0..64 {
+        for x in 0..95 {
+            let mid = (d.data[y * 96 + x] * 0.5 + d.data[y * 96 + x + 1] * 0.5) as f32 as f64;
+            assert_eq!(s.data[2 * y * 191 + 2 * x + 1], mid, "({x},{y})");
+            assert_eq!(s.data[2 * y * 191 + 2 * x], d.data[y * 96 + x]);
+        }
+    }
+}
+
+#[test]
+fn a_raster_within_one_tile_stays_version_1() {
+    let src = source();
+    let b = vtz::encode(&src, &tiled_opts(&[], Some(2.0), 512, 0)).unwrap();
+    assert_eq!(u16::from_le_bytes([b[8], b[9]]), 1);
+    // The default keeps rasters up to 2048 untiled.
+    let b = vtz::encode(&src, &encode_opts(&[], Some(ErrorBound::Abs(2.0)))).unwrap();
+    assert_eq!(u16::from_le_bytes([b[8], b[9]]), 1);
+}
+
+fn tiled_file() -> (Vec<u8>, vtz::TilesInfo) {
+    let src = source();
+    let mut o = tiled_opts(&[], Some(2.0), 40, 0);
+    o.metadata = Some("{\"who\":\"test\"}".into());
+    let bytes = vtz::encode(&src, &o).unwrap();
+    let t = vtz::info(&bytes, Default::default()).unwrap().tiles.unwrap();
+    (bytes, t)
+}
+
+fn corrupt_msg(bytes: &[u8]) -> String {
+    match Decoder::new(Cursor::new(bytes)).and_then(|mut d| d.decode()) {
+        Err(e @ Error::Corrupt { .. }) => e.to_string(),
+        Err(e) => panic!("not a corrupt error: {e}"),
+        Ok(_) => panic!("decoded a corrupt file"),
+    }
+}
+
+/// Rewrite index entry `k`'s field at byte `at` (of its 56) and fix the index checksum.
+fn patch_index(bytes: &[u8], k: usize, at: usize, value: &[u8]) -> Vec<u8> {
+    let mut b = bytes.to_vec();
+    let n = 12; // the tiles of `tiled_file`
+    let start = b.len() - (8 + 56 * n);
+    let e = start + 4 + 56 * k + at;
+    b[e..e + value.len()].copy_from_slice(value);
+    let crc = crc32(&b[start..b.len() - 4]);
+    let l = b.len();
+    b[l - 4..].copy_from_slice(&crc.to_le_bytes());
+    b
+}
+
+fn crc32(b: &[u8]) -> u32 {
+    let mut c = !0u32;
+    for &x in b {
+        c ^= x as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 { (c >> 1) ^ 0xEDB8_8320 } else { c >> 1 };
+        }
+    }
+    !c
+}
+
+#[test]
+fn corrupt_indexes_are_rejected_naming_the_tile() {
+    let (bytes, t) = tiled_file();
+    assert_eq!(t.tiles.len(), 12);
+    let off = |k: usize| t.tiles[k].offset;
+    // An offset outside the file.
+    let m = corrupt_msg(&patch_index(&bytes, 3, 0, &(bytes.len() as u64 * 2).to_le_bytes()));
+    let w = t.tiles[3].window;
+    assert!(m.contains(&format!("tile 3 (at {},{})", w.x, w.y)), "{m}");
+    // Overlapping the previous tile; repeating it.
+    let m = corrupt_msg(&patch_index(&bytes, 4, 0, &(off(4) - 1).to_le_bytes()));
+    assert!(m.contains("tile 4") && m.contains("back to back"), "{m}");
+    let m = corrupt_msg(&patch_index(&bytes, 5, 0, &off(4).to_le_bytes()));
+    assert!(m.contains("tile 5"), "{m}");
+    // A length beyond the file, and one beyond the limits.
+    let m = corrupt_msg(&patch_index(&bytes, 11, 8, &u64::MAX.to_le_bytes()));
+    assert!(m.contains("tile 11"), "{m}");
+    let mut limits = vtz::Limits::default();
+    limits.max_section_bytes = 100;
+    let e = Decoder::with_limits(Cursor::new(&bytes), limits).err().unwrap();
+    assert!(matches!(e, Error::LimitExceeded { .. }), "{e}");
+    // A valid count above the tile's samples; a reversed range; a negative max error.
+    let m = corrupt_msg(&patch_index(&bytes, 2, 24, &1_000_000u64.to_le_bytes()));
+    assert!(m.contains("valid samples"), "{m}");
+    let m = corrupt_msg(&patch_index(&bytes, 2, 32, &1e9f64.to_le_bytes()));
+    assert!(m.contains("range"), "{m}");
+    let m = corrupt_msg(&patch_index(&bytes, 2, 48, &(-1.0f64).to_le_bytes()));
+    assert!(m.contains("max error"), "{m}");
+    // A bad checksum of the index itself.
+    let mut b = bytes.clone();
+    let l = b.len();
+    b[l - 10] ^= 1;
+    assert!(corrupt_msg(&b).contains("tile index checksum"));
+}
+
+#[test]
+fn every_proper_prefix_of_a_tiled_file_is_rejected() {
+    let (bytes, _) = tiled_file();
+    for n in 0..bytes.len() {
+        assert!(
+            Decoder::new(Cursor::new(&bytes[..n])).is_err(),
+            "prefix of {n} of {} bytes opened",
+            bytes.len()
+        );
+    }
+}
+
+#[test]
+fn a_corrupt_tile_fails_naming_it_and_skip_corrupt_writes_nodata_there() {
+    let (bytes, t) = tiled_file();
+    let k = 6;
+    let mut b = bytes.clone();
+    let at = (t.tiles[k].offset + t.tiles[k].bytes / 2) as usize;
+    b[at] ^= 0x55;
+    let m = corrupt_msg(&b);
+    let w = t.tiles[k].window;
+    assert!(m.contains(&format!("tile 6 (at {},{})", w.x, w.y)) && m.contains("checksum"), "{m}");
+    // Windows that miss the tile still decode.
+    let win = Window { x: 0, y: 0, width: 150, height: w.y };
+    assert!(vtz::decode_with(&b, &decode_opts(|o| o.window = Some(win))).is_ok());
+    let mut d = Decoder::new(Cursor::new(&b)).unwrap();
+    d.options(decode_opts(|o| o.skip_corrupt = true));
+    let r = d.decode().unwrap();
+    assert_eq!(d.skipped().len(), 1);
+    assert!(d.skipped()[0].contains("tile 6"));
+    let full = vtz::decode(&bytes).unwrap();
+    for y in 0..110 {
+        for x in 0..150 {
+            let i = y * 150 + x;
+            let inside = x >= w.x && x < w.x + w.width && y >= w.y && y < w.y + w.height;
+            if inside {
+                assert!(!r.is_valid(i), "({x},{y}) should be nodata");
+            } else {
+                assert_eq!(r.is_valid(i), full.is_valid(i));
+                assert_eq!(r.data[i].to_bits(), full.data[i].to_bits());
+            }
+        }
+    }
+}
+
+#[test]
+fn whole_file_requests_stay_untiled_or_are_refused_with_an_explicit_tile() {
+    let src = source();
+    let mut o = encode_opts(&[], None);
+    o.target_bytes = Some(4000);
+    o.tile = Some(32);
+    let e = vtz::encode(&src, &o).unwrap_err();
+    assert!(matches!(e, Error::InvalidArgument { .. }), "{e}");
+    let mut o = tiled_opts(&[], Some(1.0), 8, 0);
+    o.tile = Some(8);
+    let e = vtz::encode(&src, &o).unwrap_err();
+    assert!(e.to_string().contains("below the smallest"), "{e}");
+}
+
+#[test]
+fn metadata_goes_to_the_global_sections_and_comes_back() {
+    let mut src = source();
+    src.gdal_metadata = Some("<GDALMetadata><Item name=\"UNITTYPE\" sample=\"0\" role=\"unittype\">m</Item></GDALMetadata>".into());
+    let bytes = vtz::encode(&src, &tiled_opts(&[Method::GRID], None, 40, 0)).unwrap();
+    let info = vtz::info(&bytes, Default::default()).unwrap();
+    assert_eq!(info.sections.len(), 1);
+    assert_eq!(info.sections[0].name, "gdal-metadata");
+    let d = vtz::decode(&bytes).unwrap();
+    assert_eq!(d.gdal_metadata, src.gdal_metadata);
+    assert_eq!(bits(&d), bits(&src), "lossless");
+}
