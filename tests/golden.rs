@@ -28,6 +28,10 @@ fn coast() -> vtz::Raster {
 }
 
 fn window(x: usize, y: usize) -> vtz::Raster {
+    window_of(x, y, 64, 48)
+}
+
+fn window_of(x: usize, y: usize, width: usize, height: usize) -> vtz::Raster {
     let bytes = vtz::encode(
         &read_corpus("srtm3_N22W160_kauai.hgt"),
         &EncodeOptions::default(),
@@ -37,8 +41,8 @@ fn window(x: usize, y: usize) -> vtz::Raster {
         o.window = Some(Window {
             x,
             y,
-            width: 64,
-            height: 48,
+            width,
+            height,
         })
     });
     vtz::decode_with(&bytes, &opts).unwrap()
@@ -316,4 +320,57 @@ fn the_residual_and_flat_golden_files_cover_both_predictors_and_every_new_coding
         sea > 1400 && kept >= 1024 && kept + 60 >= sea,
         "{kept} of {sea} sea samples exact"
     );
+}
+
+/// The version-2 golden file: a 96×64 window of Kauai's coast (voids, sea, land) cut into
+/// 3 × 2 tiles of 32², each coded by `best` within 8 m, with metadata and GDAL metadata in
+/// the global sections.
+#[test]
+fn the_tiled_golden_file_decodes_to_its_expected_samples() {
+    let name = "v2_kauai_tiles";
+    let vtz_path = dir().join(format!("{name}.vtz"));
+    let exp_path = dir().join(format!("{name}.expected.f32"));
+    if !vtz_path.exists() {
+        assert!(
+            std::env::var_os("VTZ_BLESS_GOLDEN").is_some(),
+            "{} is missing (VTZ_BLESS_GOLDEN=1 writes it)",
+            vtz_path.display()
+        );
+        let mut src = window_of(360, 952, 96, 64);
+        src.gdal_metadata = Some(GDAL_METADATA.into());
+        let mut opts = encode_opts(&[], Some(ErrorBound::Abs(8.0)));
+        opts.tile = Some(32);
+        opts.metadata = Some("{\"golden\":\"v2\"}".into());
+        let bytes = vtz::encode(&src, &opts).unwrap();
+        std::fs::write(&vtz_path, &bytes).unwrap();
+        std::fs::write(&exp_path, as_f32_bytes(&vtz::decode(&bytes).unwrap())).unwrap();
+    }
+    let bytes = std::fs::read(&vtz_path).unwrap();
+    assert_eq!(
+        u16::from_le_bytes([bytes[8], bytes[9]]),
+        2,
+        "a version-2 file"
+    );
+    let info = vtz::info(&bytes, Default::default()).unwrap();
+    let t = info.tiles.as_ref().expect("tiles");
+    assert_eq!(
+        (t.cols, t.rows, t.tile_width, t.tile_height),
+        (3, 2, 32, 32)
+    );
+    assert_eq!(info.sections.len(), 2, "metadata and gdal-metadata");
+    let r = vtz::decode(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert_eq!((r.width, r.height), (96, 64));
+    assert_eq!(r.nodata, Some(-32768.0));
+    assert_eq!(r.sample_type, vtz::SampleType::I16);
+    assert_eq!(r.georef.as_ref().and_then(|g| g.epsg), Some(4326));
+    assert!(r.valid_count() < r.len(), "the window has voids");
+    let expected = std::fs::read(&exp_path).unwrap();
+    assert!(
+        as_f32_bytes(&r) == expected,
+        "{name}: decoded samples differ"
+    );
+    vtz::Decoder::new(std::io::Cursor::new(&bytes))
+        .unwrap()
+        .verify()
+        .unwrap();
 }

@@ -43,7 +43,11 @@ fn every_method_round_trips_within_the_bound_over_tiles() {
         let info = vtz::info(&bytes, Default::default()).unwrap();
         let t = info.tiles.as_ref().expect("a tiled file");
         assert_eq!((t.cols, t.rows), (4, 3), "{}", m.name());
-        let section = if m == Method::SIBSON { "sites" } else { m.name() };
+        let section = if m == Method::SIBSON {
+            "sites"
+        } else {
+            m.name()
+        };
         assert!(t.tiles.iter().all(|x| x.method == section), "{}", m.name());
         let d = vtz::decode(&bytes).unwrap();
         assert_eq!(d.mask, src.mask, "{}: nodata kept", m.name());
@@ -65,7 +69,11 @@ fn a_percent_bound_is_of_the_whole_rasters_range() {
     assert!(rep.max_error <= e);
     assert!(max_err(&src, &vtz::decode(&bytes).unwrap()) <= e);
     let info = vtz::info(&bytes, Default::default()).unwrap();
-    assert_eq!(info.range, Some((lo, hi)), "the file's range is the tiles' union");
+    assert_eq!(
+        info.range,
+        Some((lo, hi)),
+        "the file's range is the tiles' union"
+    );
 }
 
 #[test]
@@ -97,7 +105,12 @@ fn a_window_is_the_crop_of_the_full_decode_bit_for_bit() {
         for _ in 0..12 {
             let (x, y) = (rnd(129), rnd(89));
             let (w, h) = (1 + rnd(130 - x), 1 + rnd(90 - y));
-            let win = Window { x, y, width: w, height: h };
+            let win = Window {
+                x,
+                y,
+                width: w,
+                height: h,
+            };
             let d = vtz::decode_with(&bytes, &decode_opts(|o| o.window = Some(win))).unwrap();
             for j in 0..h {
                 for i in 0..w {
@@ -141,9 +154,33 @@ fn a_window_reads_the_header_the_index_and_only_the_tiles_it_touches() {
     let head = t.tiles[0].offset; // header + global sections
     let index = bytes.len() as u64 - index_start;
     for (win, touched) in [
-        (Window { x: 10, y: 10, width: 20, height: 20 }, vec![0]),
-        (Window { x: 60, y: 70, width: 10, height: 10 }, vec![4, 5]),
-        (Window { x: 120, y: 120, width: 20, height: 20 }, vec![5, 6, 9, 10]),
+        (
+            Window {
+                x: 10,
+                y: 10,
+                width: 20,
+                height: 20,
+            },
+            vec![0],
+        ),
+        (
+            Window {
+                x: 60,
+                y: 70,
+                width: 10,
+                height: 10,
+            },
+            vec![4, 5],
+        ),
+        (
+            Window {
+                x: 120,
+                y: 120,
+                width: 20,
+                height: 20,
+            },
+            vec![5, 6, 9, 10],
+        ),
     ] {
         let read = Arc::new(AtomicU64::new(0));
         let r = Counting {
@@ -169,8 +206,11 @@ fn resampling_is_continuous_across_tile_borders() {
     let src = terrain(Kind::Hill, 96, 64, 5, false, SampleType::F32);
     let bytes = vtz::encode(&src, &tiled_opts(&[Method::SIBSON], Some(2.0), 32, 0)).unwrap();
     let d = vtz::decode(&bytes).unwrap();
-    let s = vtz::decode_with(&bytes, &decode_opts(|o| o.scale = Some("2".parse().unwrap())))
-        .unwrap();
+    let s = vtz::decode_with(
+        &bytes,
+        &decode_opts(|o| o.scale = Some("2".parse().unwrap())),
+    )
+    .unwrap();
     assert_eq!((s.width, s.height), (191, 127));
     // Every resampled point between two samples (across a tile border or not) is their
     // midpoint: the surface has no step at x = 32 or 64, y = 32.
@@ -198,7 +238,10 @@ fn tiled_file() -> (Vec<u8>, vtz::TilesInfo) {
     let mut o = tiled_opts(&[], Some(2.0), 40, 0);
     o.metadata = Some("{\"who\":\"test\"}".into());
     let bytes = vtz::encode(&src, &o).unwrap();
-    let t = vtz::info(&bytes, Default::default()).unwrap().tiles.unwrap();
+    let t = vtz::info(&bytes, Default::default())
+        .unwrap()
+        .tiles
+        .unwrap();
     (bytes, t)
 }
 
@@ -228,7 +271,11 @@ fn crc32(b: &[u8]) -> u32 {
     for &x in b {
         c ^= x as u32;
         for _ in 0..8 {
-            c = if c & 1 != 0 { (c >> 1) ^ 0xEDB8_8320 } else { c >> 1 };
+            c = if c & 1 != 0 {
+                (c >> 1) ^ 0xEDB8_8320
+            } else {
+                c >> 1
+            };
         }
     }
     !c
@@ -240,7 +287,12 @@ fn corrupt_indexes_are_rejected_naming_the_tile() {
     assert_eq!(t.tiles.len(), 12);
     let off = |k: usize| t.tiles[k].offset;
     // An offset outside the file.
-    let m = corrupt_msg(&patch_index(&bytes, 3, 0, &(bytes.len() as u64 * 2).to_le_bytes()));
+    let m = corrupt_msg(&patch_index(
+        &bytes,
+        3,
+        0,
+        &(bytes.len() as u64 * 2).to_le_bytes(),
+    ));
     let w = t.tiles[3].window;
     assert!(m.contains(&format!("tile 3 (at {},{})", w.x, w.y)), "{m}");
     // Overlapping the previous tile; repeating it.
@@ -251,9 +303,13 @@ fn corrupt_indexes_are_rejected_naming_the_tile() {
     // A length beyond the file, and one beyond the limits.
     let m = corrupt_msg(&patch_index(&bytes, 11, 8, &u64::MAX.to_le_bytes()));
     assert!(m.contains("tile 11"), "{m}");
-    let mut limits = vtz::Limits::default();
-    limits.max_section_bytes = 100;
-    let e = Decoder::with_limits(Cursor::new(&bytes), limits).err().unwrap();
+    let limits = vtz::Limits {
+        max_section_bytes: 100,
+        ..Default::default()
+    };
+    let e = Decoder::with_limits(Cursor::new(&bytes), limits)
+        .err()
+        .unwrap();
     assert!(matches!(e, Error::LimitExceeded { .. }), "{e}");
     // A valid count above the tile's samples; a reversed range; a negative max error.
     let m = corrupt_msg(&patch_index(&bytes, 2, 24, &1_000_000u64.to_le_bytes()));
@@ -290,9 +346,17 @@ fn a_corrupt_tile_fails_naming_it_and_skip_corrupt_writes_nodata_there() {
     b[at] ^= 0x55;
     let m = corrupt_msg(&b);
     let w = t.tiles[k].window;
-    assert!(m.contains(&format!("tile 6 (at {},{})", w.x, w.y)) && m.contains("checksum"), "{m}");
+    assert!(
+        m.contains(&format!("tile 6 (at {},{})", w.x, w.y)) && m.contains("checksum"),
+        "{m}"
+    );
     // Windows that miss the tile still decode.
-    let win = Window { x: 0, y: 0, width: 150, height: w.y };
+    let win = Window {
+        x: 0,
+        y: 0,
+        width: 150,
+        height: w.y,
+    };
     assert!(vtz::decode_with(&b, &decode_opts(|o| o.window = Some(win))).is_ok());
     let mut d = Decoder::new(Cursor::new(&b)).unwrap();
     d.options(decode_opts(|o| o.skip_corrupt = true));

@@ -366,7 +366,11 @@ impl<R: Read + Seek> Decoder<R> {
             Opened::Untiled(decode::open(reader, limits)?)
         };
         let (h, entries, primary) = match &rd {
-            Opened::Untiled(r) => (r.header().clone(), r.entries().to_vec(), Some(r.header().primary as usize)),
+            Opened::Untiled(r) => (
+                r.header().clone(),
+                r.entries().to_vec(),
+                Some(r.header().primary as usize),
+            ),
             Opened::Tiled(r) => (r.header().clone(), r.global().to_vec(), None),
         };
         let sections = entries
@@ -401,8 +405,10 @@ impl<R: Read + Seek> Decoder<R> {
                             window: g.rect(k),
                             offset: t.offset,
                             bytes: t.length,
-                            method: decode::kind_names(t.kind)
-                                .map_or_else(|| format!("unknown-{}", t.kind.code()), str::to_string),
+                            method: decode::kind_names(t.kind).map_or_else(
+                                || format!("unknown-{}", t.kind.code()),
+                                str::to_string,
+                            ),
                             valid: t.valid,
                             range: t.range,
                             max_error: t.max_error,
@@ -509,7 +515,9 @@ impl<R: Read + Seek> Decoder<R> {
         progress: &(dyn Fn(f64) + Sync),
     ) -> Result<()> {
         if self.opts.scale.is_some() {
-            return Err(Error::invalid("a band-by-band decode cannot resample (--scale)"));
+            return Err(Error::invalid(
+                "a band-by-band decode cannot resample (--scale)",
+            ));
         }
         progress(0.0);
         match &mut self.rd {

@@ -5,7 +5,7 @@
 use super::decode::{self, check_output};
 use super::encode::{EncodeReport, encode_parts};
 use super::options::{DecodeOptions, EncodeOptions, Scale, SectionChoice};
-use crate::container::tiled::{TileGrid, TiledReader, TiledWriter, tile_name, tile_block};
+use crate::container::tiled::{TileGrid, TiledReader, TiledWriter, tile_block, tile_name};
 use crate::container::{Header, SectionKind};
 use crate::error::{Error, Result};
 use crate::methods::{self, Method};
@@ -116,7 +116,7 @@ pub fn encode_tiled<W: Write + Seek>(
         return Err(Error::limit("raster dimension over 2^31 - 1"));
     }
     let grid = TileGrid::balanced(wu, hu, tile);
-    let (tw, th) = (grid.tile_w as usize, grid.tile_h as usize);
+    let th = grid.tile_h as usize;
     let first = src.band(0, 1)?;
     let header = Header {
         width: wu,
@@ -236,7 +236,10 @@ pub fn encode_tiled<W: Write + Seek>(
 }
 
 /// Open a tiled file with the registry's section names.
-pub(crate) fn open<R: Read + Seek>(inner: R, limits: crate::container::Limits) -> Result<TiledReader<R>> {
+pub(crate) fn open<R: Read + Seek>(
+    inner: R,
+    limits: crate::container::Limits,
+) -> Result<TiledReader<R>> {
     TiledReader::new(inner, limits, decode::kind_names)
 }
 
@@ -418,10 +421,15 @@ pub(crate) fn decode_tiled<R: Read + Seek>(
         scale: None,
         ..opts.clone()
     };
-    let skipped = decode_bands(rd, &o, &mut |b| {
-        parts.push(b);
-        Ok(())
-    }, progress)?;
+    let skipped = decode_bands(
+        rd,
+        &o,
+        &mut |b| {
+            parts.push(b);
+            Ok(())
+        },
+        progress,
+    )?;
     let mut it = parts.into_iter();
     let mut r = it.next().ok_or_else(|| Error::invalid("empty window"))?;
     for b in it {
@@ -466,7 +474,12 @@ fn resample(r: &Raster, s: Scale) -> Raster {
         let y1 = if fy > 0.0 { y0 + 1 } else { y0 };
         for &(x0, fx) in &xs {
             let x1 = if fx > 0.0 { x0 + 1 } else { x0 };
-            let idx = [y0 * r.width + x0, y0 * r.width + x1, y1 * r.width + x0, y1 * r.width + x1];
+            let idx = [
+                y0 * r.width + x0,
+                y0 * r.width + x1,
+                y1 * r.width + x0,
+                y1 * r.width + x1,
+            ];
             if idx.iter().all(|&i| r.is_valid(i)) {
                 let v = (r.data[idx[0]] * (1.0 - fx) + r.data[idx[1]] * fx) * (1.0 - fy)
                     + (r.data[idx[2]] * (1.0 - fx) + r.data[idx[3]] * fx) * fy;

@@ -148,9 +148,7 @@ pub(crate) fn verify_tiled<R: Read + Seek>(
     rd: &mut crate::container::tiled::TiledReader<R>,
 ) -> Result<Verified> {
     for e in rd.global().to_vec() {
-        let p = rd
-            .global_section(e.kind)?
-            .expect("the directory lists it");
+        let p = rd.global_section(e.kind)?.expect("the directory lists it");
         let text = std::str::from_utf8(&p)
             .map_err(|_| Error::corrupt(format!("global {} section: not UTF-8", e.name)))?;
         if e.kind == SectionKind::METADATA {
@@ -189,8 +187,11 @@ pub(crate) fn verify_tiled<R: Read + Seek>(
         }
         out.sections += v.sections;
         out.valid += v.valid;
-        out.surfaces
-            .extend(v.surfaces.into_iter().map(|(i, n, b)| (k, format!("{name}: section {i} ({n})"), b)));
+        out.surfaces.extend(
+            v.surfaces
+                .into_iter()
+                .map(|(i, n, b)| (k, format!("{name}: section {i} ({n})"), b)),
+        );
     }
     Ok(out)
 }

@@ -248,7 +248,13 @@ impl<R: Read + Seek> ContainerReader<R> {
     /// A reader over one tile of a version-2 file: `inner` holds the tile's block
     /// (spec/FORMAT.md, "Tile block"), `header` the tile's own header (its size, and the
     /// file's sample type, mapping, nodata and georef). `what` names the tile in errors.
-    pub fn tile(mut inner: R, mut header: Header, limits: Limits, names: KindNames, what: &str) -> Result<Self> {
+    pub fn tile(
+        mut inner: R,
+        mut header: Header,
+        limits: Limits,
+        names: KindNames,
+        what: &str,
+    ) -> Result<Self> {
         let len = inner
             .seek(SeekFrom::End(0))
             .map_err(|e| Error::io("measuring the tile", e))?;
@@ -257,13 +263,17 @@ impl<R: Read + Seek> ContainerReader<R> {
             .map_err(|e| Error::io("seeking", e))?;
         let mut head = [0u8; 4];
         if len < 4 {
-            return Err(Error::corrupt(format!("{what} is truncated in its block header")));
+            return Err(Error::corrupt(format!(
+                "{what} is truncated in its block header"
+            )));
         }
         read_exact(&mut inner, &mut head, "tile block")?;
         let primary = u16::from_le_bytes([head[0], head[1]]);
         let reserved = u16::from_le_bytes([head[2], head[3]]);
         if reserved != 0 {
-            return Err(Error::corrupt(format!("{what}: reserved field is {reserved}, not 0")));
+            return Err(Error::corrupt(format!(
+                "{what}: reserved field is {reserved}, not 0"
+            )));
         }
         header.primary = primary;
         let entries = read_directory(&mut inner, 4, len, &limits, names, what)?;
@@ -375,7 +385,9 @@ fn read_directory<R: Read + Seek>(
         .map_err(|e| Error::io("seeking", e))?;
     let mut cnt = [0u8; 4];
     if dir_pos + 4 > end {
-        return Err(Error::corrupt(pre("truncated in the section directory".into())));
+        return Err(Error::corrupt(pre(
+            "truncated in the section directory".into()
+        )));
     }
     read_exact(inner, &mut cnt, "section directory")?;
     let count = u32::from_le_bytes(cnt);
@@ -386,7 +398,9 @@ fn read_directory<R: Read + Seek>(
     }
     let dir_len = count as u64 * DIR_ENTRY_LEN as u64 + 4;
     if dir_pos + 4 + dir_len > end {
-        return Err(Error::corrupt(pre("truncated in the section directory".into())));
+        return Err(Error::corrupt(pre(
+            "truncated in the section directory".into()
+        )));
     }
     let mut dbuf = vec![0u8; dir_len as usize];
     read_exact(inner, &mut dbuf, "section directory")?;
@@ -395,7 +409,9 @@ fn read_directory<R: Read + Seek>(
     h.update(&cnt);
     h.update(entries_bytes);
     if !checksum_ok(h.finalize(), crc_bytes) {
-        return Err(Error::corrupt(pre("section directory checksum mismatch".into())));
+        return Err(Error::corrupt(pre(
+            "section directory checksum mismatch".into()
+        )));
     }
     let mut r = ByteReader::new(entries_bytes, "section directory");
     let mut offset = dir_pos + 4 + dir_len;
@@ -408,7 +424,9 @@ fn read_directory<R: Read + Seek>(
         let crc = r.u32("section checksum")?;
         let length = r.u64("section length")?;
         if kind.code() == 0 {
-            return Err(Error::corrupt(pre(format!("section {i}: type 0 is reserved"))));
+            return Err(Error::corrupt(pre(format!(
+                "section {i}: type 0 is reserved"
+            ))));
         }
         if flags & !SF_KNOWN != 0 {
             return Err(Error::unsupported(pre(format!(

@@ -497,13 +497,26 @@ impl<R: Read + Seek> TiledReader<R> {
             ));
         }
         let global_end = first.expect("a grid has at least one tile");
-        let global = read_directory(&mut inner, global_start, global_end, &limits, names, "global sections")?;
-        if global.iter().any(|e| e.kind.may_be_primary() || e.kind == SectionKind::MASK) {
+        let global = read_directory(
+            &mut inner,
+            global_start,
+            global_end,
+            &limits,
+            names,
+            "global sections",
+        )?;
+        if global
+            .iter()
+            .any(|e| e.kind.may_be_primary() || e.kind == SectionKind::MASK)
+        {
             return Err(Error::corrupt(
                 "global sections: only metadata sections belong there",
             ));
         }
-        header.range = tiles.iter().filter_map(|t| t.range).reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)));
+        header.range = tiles
+            .iter()
+            .filter_map(|t| t.range)
+            .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)));
         Ok(TiledReader {
             inner,
             header,
@@ -543,7 +556,10 @@ impl<R: Read + Seek> TiledReader<R> {
         };
         let buf = self.read_at(e.offset, e.length, &format!("{} section", e.name))?;
         if !checksum_ok(crc32fast::hash(&buf), &e.crc.to_le_bytes()) {
-            return Err(Error::corrupt(format!("{} section: checksum mismatch", e.name)));
+            return Err(Error::corrupt(format!(
+                "{} section: checksum mismatch",
+                e.name
+            )));
         }
         Ok(Some(buf))
     }
@@ -610,7 +626,12 @@ impl TileOpener<'_> {
         };
         let name = tile_name(&self.grid, k);
         let rd = ContainerReader::tile(Cursor::new(block), h, self.limits, self.names, &name)?;
-        if rd.entries().get(rd.header().primary as usize).map(|s| s.kind) != Some(e.kind) {
+        if rd
+            .entries()
+            .get(rd.header().primary as usize)
+            .map(|s| s.kind)
+            != Some(e.kind)
+        {
             return Err(Error::corrupt(format!(
                 "{name}: its primary section is not the method the index names"
             )));

@@ -20,6 +20,7 @@ mod sidecar;
 
 use crate::error::{Error, Result};
 use crate::model::{DEFAULT_MAX_SAMPLES, Raster, SampleType, ValueMapping};
+pub use geotiff::StreamWriter as GeoTiffWriter;
 pub(crate) use output::OutputFile;
 pub use output::{PendingFile, write_file};
 pub(crate) use pam::without_statistics;
@@ -125,7 +126,6 @@ pub struct WriteOptions {
     pub round: bool,
 }
 
-/// Read a raster file, choosing the format by extension unless `opts.format` says.
 /// Open a raster file to be read band by band: raw `.f32` by seeking, GeoTIFF by chunks
 /// (neither held whole, so they may be larger than memory and than `max_samples`); other
 /// formats are read whole.
@@ -143,11 +143,22 @@ pub fn open_source(path: &Path, opts: &ReadOptions) -> Result<Box<dyn crate::mod
             let s = raw::RawSource::open(path, &json).map_err(|e| e.context(&ctx))?;
             Ok(Box::new(s))
         }
+        Format::GeoTiff => {
+            // Bands are what is held; the whole may exceed the sample limit.
+            let o = ReadOptions {
+                max_samples: Some(u64::MAX),
+                ..opts.clone()
+            };
+            Ok(Box::new(
+                geotiff::StreamReader::open(path, &o).map_err(|e| e.context(&ctx))?,
+            ))
+        }
         Format::Vtz => Err(not_here()),
         _ => Ok(Box::new(read_path(path, opts)?)),
     }
 }
 
+/// Read a raster file, choosing the format by extension unless `opts.format` says.
 pub(crate) fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
     let format = match opts.format {
         Some(f) => f,

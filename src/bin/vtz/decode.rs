@@ -70,8 +70,55 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         (Some(t), None) => t.tiles.len() as u64,
         _ => 1,
     };
+    let out_format = match format {
+        Some(f) => f,
+        None => vtz::formats::Format::from_path(&a.output)?,
+    };
+    if d.info().tiles.is_some()
+        && out_format == vtz::formats::Format::GeoTiff
+        && opts.scale.is_none()
+    {
+        // A tiled file to GeoTIFF: band by band into a tiled GeoTIFF, never the whole raster.
+        let (w, h) = (d.info().width as usize, d.info().height as usize);
+        let win = opts.window.unwrap_or(vtz::Window::full(w, h));
+        let mut out = vtz::formats::PendingFile::create(&a.output, a.force)?;
+        let mut writer = None;
+        let mut file = Some(out.writer());
+        ui.progress_tiles("decoding", tiles, |p| {
+            d.options(opts.clone()).decode_bands(
+                &mut |band| {
+                    if writer.is_none() {
+                        writer = Some(vtz::formats::GeoTiffWriter::new(
+                            file.take().expect("the first band"),
+                            win.width,
+                            win.height,
+                            &band,
+                        )?);
+                    }
+                    writer.as_mut().expect("just made").write_rows(&band)
+                },
+                p,
+            )
+        })
+        .map_err(|e| e.context(a.input.display()))?;
+        writer.expect("at least one band").finish()?;
+        out.commit()?;
+        for s in d.skipped() {
+            ui.say(format!("warning: wrote nodata for {s}"));
+        }
+        ui.say(format!(
+            "{}: {}x{} {} ({tiles} tiles, written band by band)",
+            a.output.display(),
+            win.width,
+            win.height,
+            d.info().sample_type.name()
+        ));
+        return Ok(());
+    }
     let raster = ui
-        .progress_tiles("decoding", tiles, |p| d.options(opts.clone()).decode_progress(p))
+        .progress_tiles("decoding", tiles, |p| {
+            d.options(opts.clone()).decode_progress(p)
+        })
         .map_err(|e| e.context(a.input.display()))?;
     for s in d.skipped() {
         ui.say(format!("warning: wrote nodata for {s}"));

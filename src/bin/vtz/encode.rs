@@ -133,7 +133,8 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     drop(src);
     out.commit()?;
     let info = vtz::Decoder::new(std::io::BufReader::new(
-        std::fs::File::open(&output).map_err(|e| vtz::Error::io(output.display().to_string(), e))?,
+        std::fs::File::open(&output)
+            .map_err(|e| vtz::Error::io(output.display().to_string(), e))?,
     ))?
     .info()
     .clone();

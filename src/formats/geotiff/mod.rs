@@ -27,6 +27,7 @@ mod georef;
 mod nodata;
 mod precheck;
 mod read;
+mod stream;
 mod tags;
 mod write;
 
@@ -34,6 +35,8 @@ mod write;
 mod fixtures;
 
 pub use read::read;
+#[allow(unused_imports)] // until the codec calls them
+pub use stream::{StreamReader, StreamWriter};
 pub use write::write;
 
 // Tag numbers shared by the pre-pass, the readers, the writers and the tests.

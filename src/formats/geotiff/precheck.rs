@@ -15,7 +15,7 @@ use crate::model::{SampleType, check_size};
 
 /// Tags whose data the pre-pass requires to lie inside the file (the ones the `tiff` decoder
 /// or this module reads). Other tags are never read, so a broken one is harmless.
-const CHECKED_TAGS: &[u16] = &[
+pub(super) const CHECKED_TAGS: &[u16] = &[
     TAG_IMAGE_WIDTH,
     TAG_IMAGE_LENGTH,
     TAG_BITS_PER_SAMPLE,
@@ -121,7 +121,7 @@ impl RawTiff<'_> {
 }
 
 /// Size in bytes of one value of a TIFF field type.
-fn type_size(typ: u16) -> Option<u64> {
+pub(super) fn type_size(typ: u16) -> Option<u64> {
     Some(match typ {
         1 | 2 | 6 | 7 => 1,
         3 | 8 => 2,

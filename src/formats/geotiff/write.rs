@@ -21,7 +21,7 @@ const STRIP_BYTES: u64 = 64 * 1024;
 
 /// Above this many bytes of raw samples the writer switches to BigTIFF (classic TIFF offsets
 /// are 32-bit).
-const BIGTIFF_THRESHOLD: u64 = 3 << 30;
+pub(super) const BIGTIFF_THRESHOLD: u64 = 3 << 30;
 
 /// Write a raster as a striped, Deflate-compressed single-band GeoTIFF.
 ///
