@@ -46,4 +46,23 @@ fuzz_target!(|data: &[u8]| {
             });
         }
     }
+    // A tiled file: the full decode, a window of it, and a decode that skips corrupt tiles.
+    if info.tiles.is_some() {
+        d.section(SectionChoice::Primary);
+        if let Ok(full) = d.decode() {
+            let (w, h) = (full.width, full.height);
+            let win = Window {
+                x: w / 3,
+                y: h / 2,
+                width: w - w / 3,
+                height: h - h / 2,
+            };
+            if let Ok(part) = d.window(win).decode() {
+                check::window_is_crop(&part, &full, win);
+            }
+        }
+        let mut o = vtz::DecodeOptions::default();
+        o.skip_corrupt = true;
+        let _ = d.options(o).decode();
+    }
 });
