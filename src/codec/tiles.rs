@@ -167,8 +167,12 @@ pub fn encode_tiled<W: Write + Seek>(
     let cols = grid.cols() as usize;
     let rows = grid.rows() as usize;
     let total = grid.count() as usize;
-    // Rows of tiles in flight: enough tiles to keep every worker busy.
-    let group = (2 * pool.current_num_threads()).div_ceil(cols).max(1);
+    // Rows of tiles in flight: enough tiles that workers rarely wait for the slowest of a
+    // group (tiles of sea and of mountains differ tenfold in time), within a memory budget
+    // of about 64 M samples of source bands.
+    let want = (8 * pool.current_num_threads()).div_ceil(cols).max(1);
+    let budget = (64usize << 20) / (w * th).max(1);
+    let group = want.min(budget).max(1);
     let mut report = EncodeReport {
         max_error: 0.0,
         method: Method::GRID,

@@ -61,6 +61,13 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     opts.window = a.window.as_deref().map(str::parse).transpose()?;
     opts.scale = a.scale.as_deref().map(str::parse).transpose()?;
     opts.threads = a.threads;
+    if a.threads > 0 {
+        // The GeoTIFF writer compresses its tiles on rayon's global pool: keep it to the
+        // count too (the bytes are the same for any count).
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(a.threads)
+            .build_global();
+    }
     opts.skip_corrupt = a.skip_corrupt;
     let file = std::fs::File::open(&a.input)
         .map_err(|e| vtz::Error::io(a.input.display().to_string(), e))?;

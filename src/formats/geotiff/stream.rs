@@ -825,30 +825,47 @@ impl<W: Write + Seek> StreamWriter<W> {
     /// then zlib-wrapped Deflate at level 6, what the `tiff` crate's `DeflateLevel::Balanced`
     /// gives strips. Tiles go in row-major order, so `TileOffsets` lists them as TIFF wants.
     fn flush_tile_row(&mut self) -> Result<()> {
+        use rayon::prelude::*;
         let bps = (self.st.bits() / 8) as usize;
         let row_bytes = self.width * bps;
         let tile_row_bytes = TILE * bps;
-        let mut tile = vec![0u8; TILE * tile_row_bytes];
-        for x0 in (0..self.width).step_by(TILE) {
-            let cols = TILE.min(self.width - x0);
-            tile.fill(0);
-            for r in 0..self.rows_buffered {
-                let src = &self.rows[r * row_bytes + x0 * bps..][..cols * bps];
-                tile[r * tile_row_bytes..][..cols * bps].copy_from_slice(src);
-            }
-            if self.st.is_integer() {
-                for row in tile.chunks_exact_mut(tile_row_bytes) {
-                    horizontal_predict(row, bps);
+        let (rows, rows_buffered, width, integer) = (
+            &self.rows,
+            self.rows_buffered,
+            self.width,
+            self.st.is_integer(),
+        );
+        // Tiles compress in parallel (on the caller's rayon pool) and are written in order,
+        // so the bytes do not depend on the thread count.
+        let compressed: Vec<std::io::Result<Vec<u8>>> = (0..width)
+            .step_by(TILE)
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|x0| {
+                let cols = TILE.min(width - x0);
+                let mut tile = vec![0u8; TILE * tile_row_bytes];
+                for r in 0..rows_buffered {
+                    let src = &rows[r * row_bytes + x0 * bps..][..cols * bps];
+                    tile[r * tile_row_bytes..][..cols * bps].copy_from_slice(src);
                 }
-            }
-            let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::new(6));
-            let io = |e| Error::io("writing GeoTIFF", e);
-            z.write_all(&tile).map_err(io)?;
-            let compressed = z.finish().map_err(io)?;
-            self.out.write_all(&compressed).map_err(io)?;
+                if integer {
+                    for row in tile.chunks_exact_mut(tile_row_bytes) {
+                        horizontal_predict(row, bps);
+                    }
+                }
+                let mut z =
+                    flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::new(6));
+                z.write_all(&tile)?;
+                z.finish()
+            })
+            .collect();
+        let io = |e| Error::io("writing GeoTIFF", e);
+        for c in compressed {
+            let c = c.map_err(io)?;
+            self.out.write_all(&c).map_err(io)?;
             self.offsets.push(self.pos);
-            self.counts.push(compressed.len() as u64);
-            self.pos += compressed.len() as u64;
+            self.counts.push(c.len() as u64);
+            self.pos += c.len() as u64;
         }
         self.rows.clear();
         self.rows_buffered = 0;
