@@ -54,7 +54,9 @@ fn every_method_round_trips_within_the_bound_over_tiles() {
         let me = max_err(&src, &d);
         assert!(me <= e, "{}: max error {me} over {e}", m.name());
         let v = Decoder::new(Cursor::new(&bytes)).unwrap().verify().unwrap();
-        assert_eq!(v.valid, src.valid_count() as u64);
+        // Each tile's coded samples, margins included.
+        assert_eq!(v.valid, t.tiles.iter().map(|x| x.valid).sum::<u64>());
+        assert!(v.valid > src.valid_count() as u64);
     }
 }
 
@@ -153,35 +155,31 @@ fn a_window_reads_the_header_the_index_and_only_the_tiles_it_touches() {
     let index_start = t.tiles.last().map(|e| e.offset + e.bytes).unwrap();
     let head = t.tiles[0].offset; // header + global sections
     let index = bytes.len() as u64 - index_start;
+    assert_eq!(t.margin, 8);
+    let w = |x, y, width, height| Window {
+        x,
+        y,
+        width,
+        height,
+    };
     for (win, touched) in [
-        (
-            Window {
-                x: 10,
-                y: 10,
-                width: 20,
-                height: 20,
-            },
-            vec![0],
-        ),
-        (
-            Window {
-                x: 60,
-                y: 70,
-                width: 10,
-                height: 10,
-            },
-            vec![4, 5],
-        ),
-        (
-            Window {
-                x: 120,
-                y: 120,
-                width: 20,
-                height: 20,
-            },
-            vec![5, 6, 9, 10],
-        ),
+        (w(10, 10, 20, 20), vec![0]),
+        // Within 8 samples of the borders of tiles 0, 1, 4 and 5: their margins reach it.
+        (w(60, 70, 10, 10), vec![0, 1, 4, 5]),
+        (w(120, 120, 20, 20), vec![5, 6, 9, 10]),
+        // Beyond every margin: one tile.
+        (w(74, 74, 44, 44), vec![5]),
     ] {
+        let coded: Vec<usize> = (0..16)
+            .filter(|&k| {
+                let e = t.tiles[k].coded;
+                e.x < win.x + win.width
+                    && win.x < e.x + e.width
+                    && e.y < win.y + win.height
+                    && win.y < e.y + e.height
+            })
+            .collect();
+        assert_eq!(coded, touched, "{win:?}");
         let read = Arc::new(AtomicU64::new(0));
         let r = Counting {
             inner: Cursor::new(&bytes),
@@ -355,7 +353,7 @@ fn a_corrupt_tile_fails_naming_it_and_skip_corrupt_writes_nodata_there() {
         x: 0,
         y: 0,
         width: 150,
-        height: w.y,
+        height: w.y - t.margin as usize,
     };
     assert!(vtz::decode_with(&b, &decode_opts(|o| o.window = Some(win))).is_ok());
     let mut d = Decoder::new(Cursor::new(&b)).unwrap();
@@ -364,18 +362,36 @@ fn a_corrupt_tile_fails_naming_it_and_skip_corrupt_writes_nodata_there() {
     assert_eq!(d.skipped().len(), 1);
     assert!(d.skipped()[0].contains("tile 6"));
     let full = vtz::decode(&bytes).unwrap();
+    let src = source();
+    let (m, e) = (t.margin as usize, t.tiles[k].coded);
+    let within = |x: usize, y: usize, r: Window, pad: usize| {
+        x + pad >= r.x + 2 * pad
+            && x + pad < r.x + r.width
+            && y + pad >= r.y + 2 * pad
+            && y + pad < r.y + r.height
+    };
+    let mut blended = 0;
     for y in 0..110 {
         for x in 0..150 {
             let i = y * 150 + x;
-            let inside = x >= w.x && x < w.x + w.width && y >= w.y && y < w.y + w.height;
-            if inside {
+            if within(x, y, w, m) {
+                // Only the corrupt tile codes these: nodata.
                 assert!(!r.is_valid(i), "({x},{y}) should be nodata");
-            } else {
+            } else if !within(x, y, e, 0) {
+                // The corrupt tile does not code these: as in the sound file.
                 assert_eq!(r.is_valid(i), full.is_valid(i));
                 assert_eq!(r.data[i].to_bits(), full.data[i].to_bits());
+            } else if src.is_valid(i) {
+                // Its margins: the neighbours alone, still within the bound.
+                assert!(
+                    r.is_valid(i) && (r.data[i] - src.data[i]).abs() <= 2.0,
+                    "({x},{y})"
+                );
+                blended += 1;
             }
         }
     }
+    assert!(blended > 0);
 }
 
 #[test]

@@ -260,6 +260,9 @@ pub struct TilesInfo {
     pub cols: u32,
     /// Rows of tiles.
     pub rows: u32,
+    /// Samples each tile codes beyond its core on sides with a neighbour (decoders blend
+    /// neighbours there).
+    pub margin: u32,
     /// The index, in tile order.
     pub tiles: Vec<TileInfo>,
 }
@@ -270,8 +273,10 @@ pub struct TilesInfo {
 pub struct TileInfo {
     /// Its number (row-major).
     pub index: usize,
-    /// The samples it covers.
+    /// Its core: the samples it owns.
     pub window: Window,
+    /// The samples it codes: the core and its margins.
+    pub coded: Window,
     /// Byte offset of its block.
     pub offset: u64,
     /// Bytes of its block.
@@ -396,6 +401,7 @@ impl<R: Read + Seek> Decoder<R> {
                     tile_height: g.tile_h,
                     cols: g.cols(),
                     rows: g.rows(),
+                    margin: g.margin,
                     tiles: r
                         .tiles()
                         .iter()
@@ -403,6 +409,7 @@ impl<R: Read + Seek> Decoder<R> {
                         .map(|(k, t)| TileInfo {
                             index: k,
                             window: g.rect(k),
+                            coded: g.ext(k),
                             offset: t.offset,
                             bytes: t.length,
                             method: decode::kind_names(t.kind).map_or_else(

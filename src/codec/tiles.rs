@@ -25,6 +25,11 @@ pub const DEFAULT_TILE: u32 = 1024;
 /// nothing a user would notice (benches/README.md, "Tiles").
 pub const DEFAULT_UNTILED_MAX: u32 = 2048;
 
+/// Samples each tile codes beyond its borders, across which a decoder blends neighbouring
+/// tiles (spec/FORMAT.md, "Blending"): 8 makes the error change over 16 samples instead of
+/// jumping at the border (benches/README.md, "Tiles: seams").
+pub const MARGIN: u32 = 8;
+
 /// The threads to use for `n` (0 = what the machine offers).
 pub(crate) fn threads_for(n: usize) -> usize {
     if n == 0 {
@@ -72,7 +77,7 @@ pub fn tile_count(w: usize, h: usize, opts: &EncodeOptions) -> u64 {
     let (Ok(w), Ok(h)) = (u32::try_from(w), u32::try_from(h)) else {
         return 1;
     };
-    TileGrid::balanced(w, h, t).count()
+    TileGrid::balanced(w, h, t, MARGIN).count()
 }
 
 /// Encode a raster read band by band into a version-2 file written to `out`: tiles go to
@@ -115,7 +120,8 @@ pub fn encode_tiled<W: Write + Seek>(
     if wu > i32::MAX as u32 || hu > i32::MAX as u32 {
         return Err(Error::limit("raster dimension over 2^31 - 1"));
     }
-    let grid = TileGrid::balanced(wu, hu, tile);
+    let grid = TileGrid::balanced(wu, hu, tile, MARGIN);
+    let m = grid.margin as usize;
     let th = grid.tile_h as usize;
     let first = src.band(0, 1)?;
     let header = Header {
@@ -185,12 +191,17 @@ pub fn encode_tiled<W: Write + Seek>(
     for r0 in (0..rows).step_by(group) {
         let mut tiles: Vec<(usize, Raster)> = Vec::new();
         for r in r0..(r0 + group).min(rows) {
-            let y = r * th;
-            let band = src.band(y, th.min(h - y))?;
+            // The tile row's coded rows: its core and the margins.
+            let y0 = (r * th).saturating_sub(m);
+            let y1 = ((r + 1) * th + m).min(h);
+            let band = src.band(y0, y1 - y0)?;
             for c in 0..cols {
                 let k = r * cols + c;
-                let win = grid.rect(k);
-                let mut t = band.crop(Window { y: 0, ..win });
+                let win = grid.ext(k);
+                let mut t = band.crop(Window {
+                    y: win.y - y0,
+                    ..win
+                });
                 t.georef = header.georef.as_ref().map(|g| g.window(win.x, win.y));
                 tiles.push((k, t));
             }
@@ -299,81 +310,136 @@ pub(crate) fn decode_bands<R: Read + Seek>(
         gdal
     };
     let pool = pool(opts.threads)?;
-    let touched = grid.touching(win);
+    let touched = grid.touching_ext(win);
     let total = touched.len().max(1);
     let done = AtomicUsize::new(0);
     let mut skipped = Vec::new();
     let cols = grid.cols() as usize;
     let (r0, r1) = (win.y / th, (win.y + win.height - 1) / th);
+    // Decoded tiles (the part of their coded samples inside the window), kept while a band
+    // they contribute to is still to come: at most three rows of tiles.
+    let mut decoded: std::collections::BTreeMap<usize, (Window, Result<Raster>)> =
+        std::collections::BTreeMap::new();
+    let mut rows_done: std::collections::BTreeSet<usize> = std::collections::BTreeSet::new();
+    let fill = header.nodata.unwrap_or(f64::NAN);
     for r in r0..=r1 {
+        for rr in r.saturating_sub(1)..=r + 1 {
+            if rows_done.contains(&rr) {
+                continue;
+            }
+            rows_done.insert(rr);
+            let row_tiles: Vec<usize> =
+                touched.iter().copied().filter(|k| k / cols == rr).collect();
+            if row_tiles.is_empty() {
+                continue;
+            }
+            // Reading is sequential (one reader); decoding is parallel.
+            let mut blocks = Vec::with_capacity(row_tiles.len());
+            for &k in &row_tiles {
+                blocks.push((k, rd.tile_block(k)));
+            }
+            let opener = rd.opener();
+            let out: Vec<(usize, Window, Result<Raster>)> = pool.install(|| {
+                use rayon::prelude::*;
+                blocks
+                    .into_par_iter()
+                    .map(|(k, block)| {
+                        let e = grid.ext(k);
+                        // The tile's coded samples inside the window, in raster coordinates.
+                        let x0 = win.x.max(e.x);
+                        let x1 = (win.x + win.width).min(e.x + e.width);
+                        let y0 = win.y.max(e.y);
+                        let y1 = (win.y + win.height).min(e.y + e.height);
+                        let sub = Window {
+                            x: x0,
+                            y: y0,
+                            width: x1 - x0,
+                            height: y1 - y0,
+                        };
+                        let res = block.and_then(|b| {
+                            let mut trd = opener.open(k, b)?;
+                            let o = DecodeOptions {
+                                window: Some(Window {
+                                    x: sub.x - e.x,
+                                    y: sub.y - e.y,
+                                    ..sub
+                                }),
+                                threads: 1,
+                                scale: None,
+                                ..opts.clone()
+                            };
+                            methods::with_threads(1, || {
+                                decode::decode_reader(&mut trd, &o, &|_| {})
+                            })
+                            .map_err(|e| e.context(tile_name(&grid, k)))
+                        });
+                        let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+                        progress(n as f64 / total as f64);
+                        (k, sub, res)
+                    })
+                    .collect()
+            });
+            for (k, sub, res) in out {
+                let res = match res {
+                    Err(e) if opts.skip_corrupt && matches!(e, Error::Corrupt { .. }) => {
+                        skipped.push(e.to_string());
+                        Err(e)
+                    }
+                    Err(e) => return Err(e),
+                    ok => ok,
+                };
+                decoded.insert(k, (sub, res));
+            }
+        }
+        // Band r: the window's rows in core row r, each sample the weighted blend of the
+        // tiles that code it (in tile order, so the sums are the same on every run).
         let band_y0 = (r * th).max(win.y);
         let band_y1 = ((r + 1) * th).min(win.y + win.height);
         let bh = band_y1 - band_y0;
-        let row_tiles: Vec<usize> = touched.iter().copied().filter(|k| k / cols == r).collect();
-        // Reading is sequential (one reader); decoding is parallel.
-        let mut blocks = Vec::with_capacity(row_tiles.len());
-        for &k in &row_tiles {
-            blocks.push((k, rd.tile_block(k)));
+        let n = win.width * bh;
+        let mut acc = vec![0.0f64; n];
+        let mut wsum = vec![0u64; n];
+        let mut lo = vec![f64::INFINITY; n];
+        let mut hi = vec![f64::NEG_INFINITY; n];
+        for (&k, (sub, res)) in &decoded {
+            let Ok(tr) = res else { continue };
+            let ys = band_y0.max(sub.y)..band_y1.min(sub.y + sub.height);
+            if ys.is_empty() {
+                continue;
+            }
+            let wx: Vec<u64> = (sub.x..sub.x + sub.width)
+                .map(|x| grid.weight_x(k, x))
+                .collect();
+            for y in ys {
+                let wy = grid.weight_y(k, y);
+                let trow = (y - sub.y) * sub.width;
+                let orow = (y - band_y0) * win.width + (sub.x - win.x);
+                for (i, &w) in wx.iter().enumerate() {
+                    let ww = w * wy;
+                    let t = trow + i;
+                    if ww == 0 || !tr.is_valid(t) {
+                        continue;
+                    }
+                    let o = orow + i;
+                    let v = tr.data[t];
+                    acc[o] += ww as f64 * v;
+                    wsum[o] += ww;
+                    lo[o] = lo[o].min(v);
+                    hi[o] = hi[o].max(v);
+                }
+            }
         }
-        let opener = rd.opener();
-        let decoded: Vec<(usize, Result<Raster>)> = pool.install(|| {
-            use rayon::prelude::*;
-            blocks
-                .into_par_iter()
-                .map(|(k, block)| {
-                    let t = grid.rect(k);
-                    // The part of the window in this tile, in the tile's coordinates.
-                    let x0 = win.x.max(t.x);
-                    let x1 = (win.x + win.width).min(t.x + t.width);
-                    let sub = Window {
-                        x: x0 - t.x,
-                        y: band_y0 - t.y,
-                        width: x1 - x0,
-                        height: bh,
-                    };
-                    let res = block.and_then(|b| {
-                        let mut trd = opener.open(k, b)?;
-                        let o = DecodeOptions {
-                            window: Some(sub),
-                            threads: 1,
-                            scale: None,
-                            ..opts.clone()
-                        };
-                        methods::with_threads(1, || decode::decode_reader(&mut trd, &o, &|_| {}))
-                            .map_err(|e| e.context(tile_name(&grid, k)))
-                    });
-                    let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-                    progress(n as f64 / total as f64);
-                    (k, res)
-                })
-                .collect()
-        });
-        let fill = header.nodata.unwrap_or(f64::NAN);
-        let mut data = vec![fill; win.width * bh];
-        let mut mask = vec![true; win.width * bh];
-        for (k, res) in decoded {
-            let t = grid.rect(k);
-            let x0 = win.x.max(t.x);
-            let x1 = (win.x + win.width).min(t.x + t.width);
-            let tw = x1 - x0;
-            match res {
-                Ok(tr) => {
-                    for y in 0..bh {
-                        let o = y * win.width + (x0 - win.x);
-                        data[o..o + tw].copy_from_slice(&tr.data[y * tw..(y + 1) * tw]);
-                        if let Some(m) = &tr.mask {
-                            mask[o..o + tw].copy_from_slice(&m[y * tw..(y + 1) * tw]);
-                        }
-                    }
-                }
-                Err(e) if opts.skip_corrupt && matches!(e, Error::Corrupt { .. }) => {
-                    skipped.push(e.to_string());
-                    for y in 0..bh {
-                        let o = y * win.width + (x0 - win.x);
-                        mask[o..o + tw].fill(false);
-                    }
-                }
-                Err(e) => return Err(e),
+        let mut data = vec![fill; n];
+        let mut mask = vec![false; n];
+        for o in 0..n {
+            if wsum[o] > 0 {
+                let v = crate::quant::finish(
+                    acc[o] / wsum[o] as f64,
+                    header.sample_type,
+                    header.mapping,
+                );
+                data[o] = v.clamp(lo[o], hi[o]);
+                mask[o] = true;
             }
         }
         let any_invalid = mask.contains(&false);
@@ -390,6 +456,8 @@ pub(crate) fn decode_bands<R: Read + Seek>(
         };
         band.normalize_mask();
         sink(band)?;
+        // Tiles of row r − 1 contribute to no later band.
+        decoded.retain(|&k, _| k / cols >= r);
     }
     Ok(skipped)
 }

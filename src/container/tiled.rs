@@ -17,7 +17,7 @@ pub const INDEX_ENTRY_LEN: usize = 56;
 /// Smallest tile side a file may declare (unless the raster itself is smaller).
 pub const MIN_TILE: u32 = 16;
 /// Bytes of the tile fields at the end of a version-2 header body.
-const TILE_FIELDS_LEN: usize = 24;
+const TILE_FIELDS_LEN: usize = 28;
 /// Index entry flag: the tile has valid samples, and its minimum and maximum are set.
 const TF_RANGE: u16 = 1;
 
@@ -33,23 +33,43 @@ pub struct TileGrid {
     pub tile_w: u32,
     /// Tile height (the last row may be shorter).
     pub tile_h: u32,
+    /// Samples each tile codes beyond its core on every side that has a neighbour; a
+    /// decoder blends neighbours across this band (spec/FORMAT.md, "Blending").
+    pub margin: u32,
 }
 
 impl TileGrid {
     /// The grid an encoder picks for tiles of side at most `tile`: as many tiles per axis
-    /// as that side needs, of equal size but for the last (no sliver of a few samples).
-    pub fn balanced(width: u32, height: u32, tile: u32) -> TileGrid {
+    /// as that side needs, of equal size but for the last (no sliver of a few samples), and
+    /// a margin of `margin` (less where a tile is too small for it).
+    pub fn balanced(width: u32, height: u32, tile: u32, margin: u32) -> TileGrid {
         let side = |n: u32| {
             let t = tile.max(1);
-            let count = n.div_ceil(t);
-            n.div_ceil(count.max(1))
+            // Never below the smallest tile a decoder accepts.
+            let count = n.div_ceil(t).min((n / MIN_TILE).max(1));
+            n.div_ceil(count)
         };
-        TileGrid {
+        let mut g = TileGrid {
             width,
             height,
             tile_w: side(width),
             tile_h: side(height),
+            margin: 0,
+        };
+        g.margin = margin.min(g.max_margin());
+        g
+    }
+    /// The largest margin this grid allows: half the smallest core along an axis that has
+    /// more than one tile.
+    fn max_margin(&self) -> u32 {
+        let mut m = u32::MAX;
+        for (n, t) in [(self.width, self.tile_w), (self.height, self.tile_h)] {
+            if n > t {
+                let last = n - (n.div_ceil(t) - 1) * t;
+                m = m.min(t.min(last) / 2);
+            }
         }
+        if m == u32::MAX { 0 } else { m }
     }
     /// Tiles per row.
     pub fn cols(&self) -> u32 {
@@ -74,7 +94,77 @@ impl TileGrid {
             height: self.tile_h.min(self.height - y) as usize,
         }
     }
-    /// The tiles a window touches, row-major.
+    /// The samples tile `k` codes: its core and the margin on every side that has a
+    /// neighbour.
+    pub fn ext(&self, k: usize) -> Window {
+        let r = self.rect(k);
+        let m = self.margin as usize;
+        let x0 = r.x.saturating_sub(m);
+        let y0 = r.y.saturating_sub(m);
+        let x1 = (r.x + r.width + m).min(self.width as usize);
+        let y1 = (r.y + r.height + m).min(self.height as usize);
+        Window {
+            x: x0,
+            y: y0,
+            width: x1 - x0,
+            height: y1 - y0,
+        }
+    }
+    /// The weight, out of [`TileGrid::weight_den`], of tile `k` at sample `(x, y)` (0
+    /// outside its coded samples): 1 in its core away from its neighbours, ramping linearly
+    /// across the `2 · margin` samples around a border, so neighbours' weights sum to the
+    /// denominator everywhere.
+    #[cfg(test)]
+    pub fn weight(&self, k: usize, x: usize, y: usize) -> u64 {
+        self.weight_x(k, x) * self.weight_y(k, y)
+    }
+    /// The column factor of [`TileGrid::weight`].
+    pub fn weight_x(&self, k: usize, x: usize) -> u64 {
+        let r = self.rect(k);
+        ramp(
+            x,
+            r.x,
+            r.x + r.width,
+            self.width as usize,
+            self.margin as usize,
+        )
+    }
+    /// The row factor of [`TileGrid::weight`].
+    pub fn weight_y(&self, k: usize, y: usize) -> u64 {
+        let r = self.rect(k);
+        ramp(
+            y,
+            r.y,
+            r.y + r.height,
+            self.height as usize,
+            self.margin as usize,
+        )
+    }
+    /// The sum of the weights at any sample.
+    #[cfg(test)]
+    pub fn weight_den(&self) -> u64 {
+        let d = if self.margin == 0 {
+            1
+        } else {
+            4 * self.margin as u64
+        };
+        d * d
+    }
+    /// The tiles whose coded samples (core and margin) a window touches, row-major.
+    pub fn touching_ext(&self, w: Window) -> Vec<usize> {
+        let m = self.margin as usize;
+        let x0 = w.x.saturating_sub(m);
+        let y0 = w.y.saturating_sub(m);
+        let x1 = (w.x + w.width + m).min(self.width as usize);
+        let y1 = (w.y + w.height + m).min(self.height as usize);
+        self.touching(Window {
+            x: x0,
+            y: y0,
+            width: x1 - x0,
+            height: y1 - y0,
+        })
+    }
+    /// The tiles whose cores a window touches, row-major.
     pub fn touching(&self, w: Window) -> Vec<usize> {
         if w.width == 0 || w.height == 0 {
             return Vec::new();
@@ -95,8 +185,40 @@ impl TileGrid {
                 self.tile_w, self.tile_h, self.width, self.height
             )));
         }
+        if self.margin > self.max_margin() {
+            return Err(Error::corrupt(format!(
+                "header: a margin of {} is over half the smallest tile ({})",
+                self.margin,
+                self.max_margin()
+            )));
+        }
         Ok(())
     }
+}
+
+/// A tile's weight along one axis at `p`, out of `4m` (1 for m = 0): its core is `[a, b)`
+/// of `[0, n)`; across a border with a neighbour it ramps over `[border − m, border + m)`
+/// by odd steps (1, 3, …, 4m − 1), so two neighbours' weights sum to `4m`.
+fn ramp(p: usize, a: usize, b: usize, n: usize, m: usize) -> u64 {
+    if m == 0 {
+        return (a <= p && p < b) as u64;
+    }
+    let full = 4 * m as u64;
+    let left = if a == 0 || p >= a + m {
+        full
+    } else if p + m < a {
+        0
+    } else {
+        (2 * (p + m - a) + 1) as u64
+    };
+    let right = if b == n || p + m < b {
+        full
+    } else if p >= b + m {
+        0
+    } else {
+        (2 * (b + m - p) - 1) as u64
+    };
+    left.min(right)
 }
 
 /// One tile's entry in the index: where its block is and what it holds.
@@ -155,6 +277,7 @@ fn head_bytes(header: &Header, grid: &TileGrid, index_offset: u64, index_len: u6
     let mut body = h.to_bytes();
     body.put_u32(grid.tile_w);
     body.put_u32(grid.tile_h);
+    body.put_u32(grid.margin);
     body.put_u64(index_offset);
     body.put_u64(index_len);
     let mut out = Vec::with_capacity(20 + body.len());
@@ -361,6 +484,7 @@ impl<R: Read + Seek> TiledReader<R> {
             height: header.height,
             tile_w: r.u32("tile width")?,
             tile_h: r.u32("tile height")?,
+            margin: r.u32("margin")?,
         };
         let index_offset = r.u64("index offset")?;
         let index_len = r.u64("index length")?;
@@ -457,7 +581,7 @@ impl<R: Read + Seek> TiledReader<R> {
             if flags & !TF_RANGE != 0 {
                 return Err(t(format!("unknown flags 0x{:04x}", flags & !TF_RANGE)));
             }
-            let w = grid.rect(k);
+            let w = grid.ext(k);
             if valid > (w.width * w.height) as u64 {
                 return Err(t(format!(
                     "{valid} valid samples in a {}x{} tile",
@@ -614,7 +738,7 @@ pub struct TileOpener<'a> {
 impl TileOpener<'_> {
     /// A container reader over tile `k`'s block, with the tile's header.
     pub fn open(&self, k: usize, block: Vec<u8>) -> Result<ContainerReader<Cursor<Vec<u8>>>> {
-        let w = self.grid.rect(k);
+        let w = self.grid.ext(k);
         let e = &self.tiles[k];
         let h = Header {
             width: w.width as u32,
@@ -644,4 +768,55 @@ impl TileOpener<'_> {
 pub fn tile_name(grid: &TileGrid, k: usize) -> String {
     let w = grid.rect(k);
     format!("tile {k} (at {},{})", w.x, w.y)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn weights_sum_to_the_denominator_at_every_sample_and_vanish_outside_the_coded_samples() {
+        for (w, h, t, m) in [
+            (100, 70, 32, 8),
+            (100, 70, 32, 3),
+            (64, 64, 16, 8),
+            (1000, 40, 300, 8),
+            (50, 50, 50, 8),
+            (97, 33, 16, 0),
+        ] {
+            let g = TileGrid::balanced(w, h, t, m);
+            assert!(g.check().is_ok(), "{g:?}");
+            for y in 0..h as usize {
+                for x in 0..w as usize {
+                    let mut sum = 0;
+                    for k in 0..g.count() as usize {
+                        let wt = g.weight(k, x, y);
+                        let e = g.ext(k);
+                        let inside =
+                            x >= e.x && x < e.x + e.width && y >= e.y && y < e.y + e.height;
+                        assert!(
+                            inside || wt == 0,
+                            "{g:?}: tile {k} weighs ({x},{y}) outside"
+                        );
+                        sum += wt;
+                    }
+                    assert_eq!(sum, g.weight_den(), "{g:?} at ({x},{y})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_margin_over_half_the_smallest_tile_is_refused() {
+        let mut g = TileGrid::balanced(100, 100, 40, 8);
+        assert_eq!(g.margin, 8);
+        g.margin = 17; // tiles of 34
+        assert!(g.check().is_err());
+        // Tiles are never below the smallest a decoder accepts (16), so the default margin
+        // fits: 40 in tiles of at most 16 is 2 tiles of 20, not 3 of 14.
+        let mut g = TileGrid::balanced(40, 40, 16, 8);
+        assert_eq!((g.tile_w, g.margin), (20, 8));
+        g.margin = 11;
+        assert!(g.check().is_err());
+    }
 }

@@ -53,10 +53,11 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
     let tiles = info.tiles.as_ref().map(|t| {
         serde_json::json!({
             "tile_width": t.tile_width, "tile_height": t.tile_height,
-            "cols": t.cols, "rows": t.rows, "count": t.tiles.len(),
+            "cols": t.cols, "rows": t.rows, "count": t.tiles.len(), "margin": t.margin,
             "index": t.tiles.iter().map(|e| serde_json::json!({
                 "tile": e.index, "x": e.window.x, "y": e.window.y,
                 "width": e.window.width, "height": e.window.height,
+                "coded": [e.coded.x, e.coded.y, e.coded.width, e.coded.height],
                 "offset": e.offset, "bytes": e.bytes, "method": e.method,
                 "valid": e.valid, "min": e.range.map(|r| r.0), "max": e.range.map(|r| r.1),
                 "max_error": e.max_error,
@@ -168,12 +169,13 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
         }
         let worst = t.tiles.iter().map(|e| e.max_error).fold(0.0, f64::max);
         outln!(
-            "tiles         {} x {} = {} tiles of {} x {} (version 2), max error {}",
+            "tiles         {} x {} = {} tiles of {} x {} (version 2), blended over {} samples, max error {}",
             t.cols,
             t.rows,
             t.tiles.len(),
             t.tile_width,
             t.tile_height,
+            2 * t.margin,
             num(worst)
         );
         for (m, n, b) in &methods {
