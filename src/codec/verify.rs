@@ -20,6 +20,9 @@ pub struct Verified {
     pub valid: u64,
     /// Optional sections of types this decoder does not know: checksum only.
     pub unknown: Vec<usize>,
+    /// Tiles checked, each as a file of its own (0 for an untiled file; then `valid` counts
+    /// each tile's coded samples, margins included, and `surfaces` lists every tile's).
+    pub tiles: usize,
 }
 
 /// Check everything the file says about itself; the first problem is the error.
@@ -138,6 +141,7 @@ pub(crate) fn verify<R: Read + Seek>(rd: &mut ContainerReader<R>) -> Result<Veri
         surfaces: surfaces.into_iter().map(|(i, n, b, _)| (i, n, b)).collect(),
         valid: valid as u64,
         unknown,
+        tiles: 0,
     })
 }
 
@@ -163,6 +167,7 @@ pub(crate) fn verify_tiled<R: Read + Seek>(
         surfaces: Vec::new(),
         valid: 0,
         unknown: Vec::new(),
+        tiles: rd.tiles().len(),
     };
     for k in 0..rd.tiles().len() {
         let name = crate::container::tiled::tile_name(&grid, k);

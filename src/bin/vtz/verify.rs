@@ -21,6 +21,17 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     for f in &a.files {
         let res = ui.busy(&format!("verifying {}", f.display()), || check(f));
         match (&res, a.json) {
+            (Ok(v), false) if v.tiles > 0 => {
+                let worst = v.surfaces.iter().map(|s| s.2).fold(0.0, f64::max);
+                outln!(
+                    "{}: ok ({} tiles, {} sections: checksums, decodes, {} coded samples within their tiles' stored ranges and max errors, the largest {})",
+                    f.display(),
+                    v.tiles,
+                    v.sections,
+                    v.valid,
+                    num(worst)
+                );
+            }
             (Ok(v), false) => {
                 let surfaces: Vec<String> = v
                     .surfaces
@@ -49,7 +60,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
                     "file": f, "ok": true, "sections": v.sections, "valid_samples": v.valid,
                     "surfaces": v.surfaces.iter().map(|(i, name, b)| serde_json::json!({
                         "index": i, "type": name, "max_error": b})).collect::<Vec<_>>(),
-                    "unknown_sections": v.unknown,
+                    "unknown_sections": v.unknown, "tiles": v.tiles,
                 })
             ),
             (Err(e), false) => outln!("{}: FAILED: {e}", f.display()),
