@@ -30,6 +30,9 @@ pub const DEFAULT_UNTILED_MAX: u32 = 2048;
 /// jumping at the border (benches/README.md, "Tiles: seams").
 pub const MARGIN: u32 = 8;
 
+/// Rows a band-by-band decode hands out at a time.
+const SUB_BAND: usize = 64;
+
 /// The threads to use for `n` (0 = what the machine offers).
 pub(crate) fn threads_for(n: usize) -> usize {
     if n == 0 {
@@ -392,72 +395,77 @@ pub(crate) fn decode_bands<R: Read + Seek>(
             }
         }
         // Band r: the window's rows in core row r, each sample the weighted blend of the
-        // tiles that code it (in tile order, so the sums are the same on every run).
+        // tiles that code it (in tile order, so the sums are the same on every run), handed
+        // out SUB_BAND rows at a time to keep the blend's buffers small.
         let band_y0 = (r * th).max(win.y);
         let band_y1 = ((r + 1) * th).min(win.y + win.height);
-        let bh = band_y1 - band_y0;
-        let n = win.width * bh;
-        let mut acc = vec![0.0f64; n];
-        let mut wsum = vec![0u64; n];
-        let mut lo = vec![f64::INFINITY; n];
-        let mut hi = vec![f64::NEG_INFINITY; n];
-        for (&k, (sub, res)) in &decoded {
-            let Ok(tr) = res else { continue };
-            let ys = band_y0.max(sub.y)..band_y1.min(sub.y + sub.height);
-            if ys.is_empty() {
-                continue;
-            }
-            let wx: Vec<u64> = (sub.x..sub.x + sub.width)
-                .map(|x| grid.weight_x(k, x))
-                .collect();
-            for y in ys {
-                let wy = grid.weight_y(k, y);
-                let trow = (y - sub.y) * sub.width;
-                let orow = (y - band_y0) * win.width + (sub.x - win.x);
-                for (i, &w) in wx.iter().enumerate() {
-                    let ww = w * wy;
-                    let t = trow + i;
-                    if ww == 0 || !tr.is_valid(t) {
-                        continue;
+        for sy0 in (band_y0..band_y1).step_by(SUB_BAND) {
+            let sy1 = (sy0 + SUB_BAND).min(band_y1);
+            let bh = sy1 - sy0;
+            let n = win.width * bh;
+            let mut acc = vec![0.0f64; n];
+            let mut wsum = vec![0u64; n];
+            let mut lo = vec![f64::INFINITY; n];
+            let mut hi = vec![f64::NEG_INFINITY; n];
+            for (&k, (sub, res)) in &decoded {
+                let Ok(tr) = res else { continue };
+                let ys = sy0.max(sub.y)..sy1.min(sub.y + sub.height);
+                if ys.is_empty() {
+                    continue;
+                }
+                let wx: Vec<u64> = (sub.x..sub.x + sub.width)
+                    .map(|x| grid.weight_x(k, x))
+                    .collect();
+                for y in ys {
+                    let wy = grid.weight_y(k, y);
+                    let trow = (y - sub.y) * sub.width;
+                    let orow = (y - sy0) * win.width + (sub.x - win.x);
+                    for (i, &w) in wx.iter().enumerate() {
+                        let ww = w * wy;
+                        let t = trow + i;
+                        if ww == 0 || !tr.is_valid(t) {
+                            continue;
+                        }
+                        let o = orow + i;
+                        let v = tr.data[t];
+                        acc[o] += ww as f64 * v;
+                        wsum[o] += ww;
+                        lo[o] = lo[o].min(v);
+                        hi[o] = hi[o].max(v);
                     }
-                    let o = orow + i;
-                    let v = tr.data[t];
-                    acc[o] += ww as f64 * v;
-                    wsum[o] += ww;
-                    lo[o] = lo[o].min(v);
-                    hi[o] = hi[o].max(v);
                 }
             }
-        }
-        let mut data = vec![fill; n];
-        let mut mask = vec![false; n];
-        for o in 0..n {
-            if wsum[o] > 0 {
-                let v = crate::quant::finish(
-                    acc[o] / wsum[o] as f64,
-                    header.sample_type,
-                    header.mapping,
-                );
-                data[o] = v.clamp(lo[o], hi[o]);
-                mask[o] = true;
+            let mut data = vec![fill; n];
+            let mut mask = vec![false; n];
+            for o in 0..n {
+                if wsum[o] > 0 {
+                    let v = crate::quant::finish(
+                        acc[o] / wsum[o] as f64,
+                        header.sample_type,
+                        header.mapping,
+                    );
+                    data[o] = v.clamp(lo[o], hi[o]);
+                    mask[o] = true;
+                }
             }
+            drop((acc, wsum, lo, hi));
+            let any_invalid = mask.contains(&false);
+            let mut band = Raster {
+                width: win.width,
+                height: bh,
+                data,
+                mask: any_invalid.then_some(mask),
+                nodata: header.nodata,
+                sample_type: header.sample_type,
+                mapping: header.mapping,
+                georef: header.georef.as_ref().map(|g| g.window(win.x, sy0)),
+                gdal_metadata: gdal.clone(),
+            };
+            band.normalize_mask();
+            sink(band)?;
+            // Tiles that code no later row are done with.
+            decoded.retain(|_, (sub, _)| sub.y + sub.height > sy1);
         }
-        let any_invalid = mask.contains(&false);
-        let mut band = Raster {
-            width: win.width,
-            height: bh,
-            data,
-            mask: any_invalid.then_some(mask),
-            nodata: header.nodata,
-            sample_type: header.sample_type,
-            mapping: header.mapping,
-            georef: header.georef.as_ref().map(|g| g.window(win.x, band_y0)),
-            gdal_metadata: gdal.clone(),
-        };
-        band.normalize_mask();
-        sink(band)?;
-        // Tiles of row r − 1 contribute to no later band.
-        decoded.retain(|&k, _| k / cols >= r);
     }
     Ok(skipped)
 }
