@@ -226,7 +226,7 @@ fn a_raster_within_one_tile_stays_version_1() {
     let src = source();
     let b = vtz::encode(&src, &tiled_opts(&[], Some(2.0), 512, 0)).unwrap();
     assert_eq!(u16::from_le_bytes([b[8], b[9]]), 1);
-    // The default keeps rasters up to 2048 untiled.
+    // The default keeps rasters up to 4096 untiled.
     let b = vtz::encode(&src, &encode_opts(&[], Some(ErrorBound::Abs(2.0)))).unwrap();
     assert_eq!(u16::from_le_bytes([b[8], b[9]]), 1);
 }

@@ -20,10 +20,11 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 pub const DEFAULT_TILE: u32 = 1024;
 
 /// Unless a tile side is given, a raster this large or smaller in both directions stays
-/// untiled: at 1201² and 1% a 2 × 2 grid of tiles costs 3–4 % of the bytes (at 10 %,
-/// 15 %: each tile's own framing, index entry and method header), which buys such a raster
-/// nothing a user would notice (benches/README.md, "Tiles").
-pub const DEFAULT_UNTILED_MAX: u32 = 2048;
+/// untiled: tiles of 1024² cost 3–9 % of the bytes at 0.3–1 % of the range and 16–31 % at
+/// 10 % on 1201²–2400² rasters (each tile's framing, index entry, method header, context
+/// learning and margins; benches/README.md, "Tiles"), which buys a raster that fits in
+/// memory little a user would notice. Larger rasters need tiles for memory.
+pub const DEFAULT_UNTILED_MAX: u32 = 4096;
 
 /// Samples each tile codes beyond its borders, across which a decoder blends neighbouring
 /// tiles (spec/FORMAT.md, "Blending"): 8 makes the error change over 16 samples instead of

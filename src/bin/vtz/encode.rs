@@ -64,7 +64,7 @@ pub struct Args {
     pub json: bool,
     /// Cut a raster larger than N samples in either direction into tiles of at most N × N
     /// that encode on all cores and decode alone (0 = never). Default: rasters larger than
-    /// 2048 in either direction are cut into tiles of about 1024.
+    /// 4096 in either direction are cut into tiles of about 1024.
     #[arg(long, value_name = "N")]
     pub tile: Option<u32>,
     /// Threads for a tiled encode (default: all cores); the file is the same for any count.
