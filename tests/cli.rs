@@ -180,3 +180,67 @@ fn georef_and_nodata_survive_geotiff_vtz_geotiff() {
     assert!(a.georef.as_ref().unwrap().geokeys.is_some());
     assert_eq!(a.nodata, Some(32767.0));
 }
+
+/// A tiled file through the CLI: `--tile`, `info --json` with the index, a `.tif` written
+/// band by band that reads back as the decode, `--window`, a corrupt tile named in a one-line
+/// error (exit 1) and rescued by `--skip-corrupt`.
+#[test]
+fn tiled_encode_decode_info_and_a_corrupt_tile() {
+    let d = tempfile::tempdir().unwrap();
+    let out = tmp(&d, "crater.vtz");
+    let src = corpus("scape_crater.png");
+    let o = vtz([
+        "encode",
+        &src,
+        "-o",
+        &out,
+        "--max-error",
+        "1%",
+        "--tile",
+        "128",
+        "--threads",
+        "2",
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let info = json(&vtz(["info", &out, "--json"]));
+    assert_eq!(info["version"], 2);
+    let t = &info["tiles"];
+    let n = t["cols"].as_u64().unwrap() * t["rows"].as_u64().unwrap();
+    assert!(n >= 9, "tiles of at most 128 over a raster of ~400²");
+    assert_eq!(t["count"].as_u64(), Some(n));
+    assert_eq!(t["index"].as_array().unwrap().len() as u64, n);
+    let tif = tmp(&d, "back.tif");
+    let o = vtz(["decode", &out, "-o", &tif, "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let c = json(&vtz(["compare", &tif, &out, "--json"]));
+    assert_eq!(
+        c["identical"], true,
+        "the band-by-band GeoTIFF is the decode"
+    );
+    let c = json(&vtz(["compare", &src, &tif, "--json"]));
+    assert!(c["max_error_pct"].as_f64().unwrap() <= 1.0 + 1e-9);
+    let w = tmp(&d, "win.tif");
+    let o = vtz(["decode", &out, "-o", &w, "--window", "90,90,40,40", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Corrupt the middle of tile 5's block.
+    let t5 = &info["tiles"]["index"][5];
+    let at = (t5["offset"].as_u64().unwrap() + t5["bytes"].as_u64().unwrap() / 2) as usize;
+    let mut bytes = std::fs::read(&out).unwrap();
+    bytes[at] ^= 0x5a;
+    let bad = tmp(&d, "bad.vtz");
+    std::fs::write(&bad, &bytes).unwrap();
+    let fail = tmp(&d, "fail.tif");
+    let o = vtz(["decode", &bad, "-o", &fail]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(e.contains("tile 5") && e.lines().count() == 1, "{e}");
+    assert!(!Path::new(&fail).exists(), "no output on failure");
+    let o = vtz(["decode", &bad, "-o", &fail, "--skip-corrupt"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("warning: wrote nodata for tile 5"),
+        "{}",
+        stderr(&o)
+    );
+}

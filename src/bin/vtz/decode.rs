@@ -111,7 +111,10 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         writer.expect("at least one band").finish()?;
         out.commit()?;
         for s in d.skipped() {
-            ui.say(format!("warning: wrote nodata for {s}"));
+            ui.say(format!(
+                "warning: wrote nodata for {}",
+                s.strip_prefix("corrupt input: ").unwrap_or(s)
+            ));
         }
         ui.say(format!(
             "{}: {}x{} {} ({tiles} tiles, written band by band)",
@@ -128,7 +131,10 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         })
         .map_err(|e| e.context(a.input.display()))?;
     for s in d.skipped() {
-        ui.say(format!("warning: wrote nodata for {s}"));
+        ui.say(format!(
+            "warning: wrote nodata for {}",
+            s.strip_prefix("corrupt input: ").unwrap_or(s)
+        ));
     }
     let wo = common::write_options(format, a.force, &a.raster);
     ui.busy("writing", || vtz::write_path(&raster, &a.output, &wo))?;
