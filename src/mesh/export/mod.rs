@@ -1,0 +1,1 @@
+//! Mesh file formats: OBJ, PLY, STL and binary glTF (`.glb`).

@@ -1,0 +1,319 @@
+//! Triangle meshes of a height field for 3D tools and terrain tiles: the Delaunay
+//! triangulation of a set of sites with their heights, in local or georeferenced
+//! coordinates, with normals, texture coordinates and skirts on request; `export` writes
+//! them as OBJ, PLY, STL and binary glTF.
+
+pub mod export;
+
+use crate::error::{Error, Result};
+use crate::geometry::triangulation::{MAX_COORD, Triangulation};
+use crate::model::{Georef, RasterType};
+
+/// A triangle mesh: positions, counter-clockwise triangles seen from above (+z), and
+/// optional per-vertex attributes.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions: x east, y north, z up.
+    pub positions: Vec<[f64; 3]>,
+    /// Triangles as vertex indices, counter-clockwise seen from +z.
+    pub triangles: Vec<[u32; 3]>,
+    /// Unit vertex normals (area-weighted means of the faces'), when asked for.
+    pub normals: Option<Vec<[f32; 3]>>,
+    /// Texture coordinates in [0, 1]: u east, v north (0 at the south edge), when asked for.
+    pub uvs: Option<Vec<[f32; 2]>>,
+}
+
+/// How a mesh is placed and what it carries.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshOptions {
+    /// Heights are multiplied by this (vertical exaggeration).
+    pub z_scale: f64,
+    /// Georeferenced coordinates (the raster's CRS units, sample centres) instead of local
+    /// ones (one unit per sample, the south-west sample at the origin).
+    pub georeferenced: bool,
+    /// Compute vertex normals.
+    pub normals: bool,
+    /// Compute texture coordinates.
+    pub uvs: bool,
+    /// Hang a skirt of this depth (in height units, before `z_scale`) below every boundary
+    /// edge, so neighbouring tiles show no cracks.
+    pub skirt: Option<f64>,
+}
+
+impl Default for MeshOptions {
+    fn default() -> Self {
+        MeshOptions {
+            z_scale: 1.0,
+            georeferenced: false,
+            normals: false,
+            uvs: false,
+            skirt: None,
+        }
+    }
+}
+
+/// A mesh vertex before placement: a sample position and its height.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Vertex {
+    /// Column of the sample (0 = west).
+    pub col: usize,
+    /// Row of the sample (0 = north).
+    pub row: usize,
+    /// Height in data units.
+    pub height: f64,
+}
+
+/// The Delaunay mesh of `vertices` over a `width × height` raster (positions must be
+/// distinct and inside it), placed as `opts` says (`georef` for georeferenced coordinates).
+pub fn triangulate(
+    vertices: &[Vertex],
+    (width, height): (usize, usize),
+    georef: Option<&Georef>,
+    opts: &MeshOptions,
+) -> Result<Mesh> {
+    if width as i64 > MAX_COORD || height as i64 > MAX_COORD {
+        return Err(Error::limit("raster too large to mesh"));
+    }
+    if !(opts.z_scale.is_finite() && opts.z_scale != 0.0) {
+        return Err(Error::invalid(format!(
+            "vertical exaggeration {} must be a finite non-zero number",
+            opts.z_scale
+        )));
+    }
+    if opts.skirt.is_some_and(|d| !(d.is_finite() && d >= 0.0)) {
+        return Err(Error::invalid("skirt depth must be a finite number ≥ 0"));
+    }
+    if opts.georeferenced && georef.is_none() {
+        return Err(Error::invalid(
+            "georeferenced coordinates need a georeferenced raster",
+        ));
+    }
+    let mut tri = Triangulation::default();
+    let mut id_of = std::collections::HashMap::with_capacity(vertices.len());
+    for (i, v) in vertices.iter().enumerate() {
+        if v.col >= width || v.row >= height {
+            return Err(Error::invalid(format!(
+                "vertex ({}, {}) is outside the {width}x{height} raster",
+                v.col, v.row
+            )));
+        }
+        let p = [v.col as i64, v.row as i64];
+        if id_of.insert(p, i).is_some() {
+            return Err(Error::invalid(format!(
+                "two vertices at ({}, {})",
+                v.col, v.row
+            )));
+        }
+        tri.insert_near(p, None)?;
+    }
+    // The triangulation's vertex ids follow insertion order.
+    let place = |col: f64, row: f64, z: f64| -> [f64; 3] {
+        match (opts.georeferenced, georef) {
+            (true, Some(g)) => {
+                // Sample centres: an area raster's origin is the corner of pixel (0, 0).
+                let c = if g.raster_type == RasterType::Area { 0.5 } else { 0.0 };
+                [
+                    g.origin[0] + (col + c) * g.pixel_size[0],
+                    g.origin[1] - (row + c) * g.pixel_size[1],
+                    z * opts.z_scale,
+                ]
+            }
+            _ => [col, (height - 1) as f64 - row, z * opts.z_scale],
+        }
+    };
+    let mut mesh = Mesh {
+        positions: vertices
+            .iter()
+            .map(|v| place(v.col as f64, v.row as f64, v.height))
+            .collect(),
+        ..Default::default()
+    };
+    for t in tri.real_triangles() {
+        let v = tri.tri(t).v;
+        // Counter-clockwise in (col, row) with rows going south is clockwise seen from
+        // above with y north: reverse.
+        mesh.triangles.push([v[0], v[2], v[1]]);
+    }
+    mesh.triangles.sort_unstable();
+    if let Some(depth) = opts.skirt {
+        add_skirt(&mut mesh, depth * opts.z_scale.abs());
+    }
+    if opts.uvs {
+        mesh.uvs = Some(
+            vertices
+                .iter()
+                .map(|v| uv(v.col, v.row, width, height))
+                .chain(skirt_uvs(&mesh, vertices, width, height))
+                .collect(),
+        );
+    }
+    if opts.normals {
+        mesh.normals = Some(normals(&mesh));
+    }
+    Ok(mesh)
+}
+
+fn uv(col: usize, row: usize, width: usize, height: usize) -> [f32; 2] {
+    let u = col as f64 / (width.max(2) - 1) as f64;
+    let v = 1.0 - row as f64 / (height.max(2) - 1) as f64;
+    [u as f32, v as f32]
+}
+
+/// The texture coordinates of the skirt's vertices: those of the vertex each hangs from.
+fn skirt_uvs<'a>(
+    mesh: &'a Mesh,
+    vertices: &'a [Vertex],
+    width: usize,
+    height: usize,
+) -> impl Iterator<Item = [f32; 2]> + 'a {
+    let n = vertices.len();
+    (n..mesh.positions.len()).map(move |i| {
+        // Skirt vertex i hangs below the surface vertex with the same x, y.
+        let p = mesh.positions[i];
+        let j = (0..n)
+            .find(|&j| mesh.positions[j][0] == p[0] && mesh.positions[j][1] == p[1])
+            .unwrap_or(0);
+        uv(vertices[j].col, vertices[j].row, width, height)
+    })
+}
+
+/// Hang a vertical skirt of `depth` below every boundary edge (an edge of one triangle
+/// only): one new vertex below each boundary vertex, two triangles per edge, facing out.
+fn add_skirt(mesh: &mut Mesh, depth: f64) {
+    let mut count: std::collections::HashMap<(u32, u32), u32> = std::collections::HashMap::new();
+    for t in &mesh.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *count.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    let mut boundary: Vec<(u32, u32)> = Vec::new();
+    for t in &mesh.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            if count[&(a.min(b), a.max(b))] == 1 {
+                boundary.push((a, b));
+            }
+        }
+    }
+    boundary.sort_unstable();
+    let mut below: std::collections::BTreeMap<u32, u32> = std::collections::BTreeMap::new();
+    for &(a, b) in &boundary {
+        for v in [a, b] {
+            below.entry(v).or_insert(0);
+        }
+    }
+    for (v, id) in below.iter_mut() {
+        let p = mesh.positions[*v as usize];
+        *id = mesh.positions.len() as u32;
+        mesh.positions.push([p[0], p[1], p[2] - depth]);
+    }
+    for (a, b) in boundary {
+        // The surface triangle runs a → b counter-clockwise, so outside is to the right:
+        // the wall a, a', b' and a, b', b faces out.
+        let (a2, b2) = (below[&a], below[&b]);
+        mesh.triangles.push([a, a2, b2]);
+        mesh.triangles.push([a, b2, b]);
+    }
+}
+
+/// Unit vertex normals: the area-weighted mean of the adjacent faces' normals.
+fn normals(mesh: &Mesh) -> Vec<[f32; 3]> {
+    let mut acc = vec![[0.0f64; 3]; mesh.positions.len()];
+    for t in &mesh.triangles {
+        let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+        let n = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        for &i in t {
+            for k in 0..3 {
+                acc[i as usize][k] += n[k];
+            }
+        }
+    }
+    acc.iter()
+        .map(|n| {
+            let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            if l > 0.0 {
+                [(n[0] / l) as f32, (n[1] / l) as f32, (n[2] / l) as f32]
+            } else {
+                [0.0, 0.0, 1.0]
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid(n: usize) -> Vec<Vertex> {
+        (0..n * n)
+            .map(|i| Vertex {
+                col: i % n,
+                row: i / n,
+                height: (i % n + i / n) as f64,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_grid_of_sites_makes_counter_clockwise_triangles_covering_the_hull() {
+        let m = triangulate(&grid(4), (4, 4), None, &MeshOptions::default()).unwrap();
+        assert_eq!(m.positions.len(), 16);
+        assert_eq!(m.triangles.len(), 18, "2 (n−1)² triangles");
+        let mut area = 0.0;
+        for t in &m.triangles {
+            let [a, b, c] = t.map(|i| m.positions[i as usize]);
+            let cross = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+            assert!(cross > 0.0, "counter-clockwise from above");
+            area += cross / 2.0;
+        }
+        assert_eq!(area, 9.0);
+        // Local coordinates: north up, the south-west sample at the origin.
+        assert_eq!(m.positions[0], [0.0, 3.0, 0.0]);
+    }
+
+    #[test]
+    fn skirts_hang_below_every_boundary_edge_and_normals_point_up() {
+        let o = MeshOptions {
+            skirt: Some(10.0),
+            normals: true,
+            uvs: true,
+            z_scale: 2.0,
+            ..Default::default()
+        };
+        let m = triangulate(&grid(3), (3, 3), None, &o).unwrap();
+        // 8 boundary vertices, 8 boundary edges: 8 new vertices, 16 wall triangles.
+        assert_eq!(m.positions.len(), 9 + 8);
+        assert_eq!(m.triangles.len(), 8 + 16);
+        assert!(m.positions[9..].iter().all(|p| p[2] < 0.0 || p[2] <= 2.0 * 4.0 - 20.0));
+        let n = m.normals.as_ref().unwrap();
+        // z = 2 (col + row) rises 2 per sample east and 2 per sample south (y falls):
+        // the normal of that plane is (−2, 2, 1) / 3.
+        let want = [-2.0f32 / 3.0, 2.0 / 3.0, 1.0 / 3.0];
+        assert!((0..3).all(|k| (n[4][k] - want[k]).abs() < 1e-6), "{:?}", n[4]);
+        assert_eq!(m.uvs.as_ref().unwrap().len(), m.positions.len());
+    }
+
+    #[test]
+    fn bad_options_and_vertices_are_refused() {
+        let o = MeshOptions {
+            z_scale: 0.0,
+            ..Default::default()
+        };
+        assert!(triangulate(&grid(3), (3, 3), None, &o).is_err());
+        let mut v = grid(3);
+        v[1] = v[0];
+        assert!(triangulate(&v, (3, 3), None, &MeshOptions::default()).is_err());
+        let g = MeshOptions {
+            georeferenced: true,
+            ..Default::default()
+        };
+        assert!(triangulate(&grid(3), (3, 3), None, &g).is_err());
+    }
+}
