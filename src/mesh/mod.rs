@@ -153,6 +153,65 @@ pub fn triangulate(
     Ok(mesh)
 }
 
+/// Add vertices until no triangle edge is longer than `max_edge` samples: the sample nearest
+/// the middle of the longest too-long edge, with its height from `height_at` (a sample
+/// `height_at` gives no height for, nodata, is skipped), until none is left. Martini's and
+/// Delatin's users ask for this bound on triangle size (long thin triangles across flat
+/// land shade badly and cannot be draped).
+pub fn refine_max_edge(
+    vertices: &mut Vec<Vertex>,
+    (width, height): (usize, usize),
+    height_at: &dyn Fn(usize, usize) -> Option<f64>,
+    max_edge: f64,
+) -> Result<()> {
+    if !(max_edge.is_finite() && max_edge >= 2.0) {
+        return Err(Error::invalid(format!(
+            "a maximum edge of {max_edge} samples is not a number ≥ 2"
+        )));
+    }
+    let mut tri = Triangulation::default();
+    let mut taken: std::collections::HashSet<(usize, usize)> = std::collections::HashSet::new();
+    for v in vertices.iter() {
+        tri.insert_near([v.col as i64, v.row as i64], None)?;
+        taken.insert((v.col, v.row));
+    }
+    let too_long = |a: [i64; 2], b: [i64; 2]| {
+        let (dx, dy) = ((a[0] - b[0]) as f64, (a[1] - b[1]) as f64);
+        dx * dx + dy * dy > max_edge * max_edge
+    };
+    // Sweep until a pass inserts nothing; each pass splits every too-long edge once.
+    loop {
+        let mut wanted: std::collections::BTreeSet<(usize, usize)> = Default::default();
+        for t in tri.real_triangles() {
+            let v = tri.tri(t).v;
+            for k in 0..3 {
+                let (a, b) = (tri.point(v[k]), tri.point(v[(k + 1) % 3]));
+                if too_long(a, b) {
+                    let m = (((a[0] + b[0]) / 2) as usize, ((a[1] + b[1]) / 2) as usize);
+                    if m.0 < width && m.1 < height && !taken.contains(&m) {
+                        wanted.insert(m);
+                    }
+                }
+            }
+        }
+        let mut added = 0;
+        for (c, r) in wanted {
+            taken.insert((c, r));
+            let Some(h) = height_at(c, r) else { continue };
+            tri.insert_near([c as i64, r as i64], None)?;
+            vertices.push(Vertex {
+                col: c,
+                row: r,
+                height: h,
+            });
+            added += 1;
+        }
+        if added == 0 {
+            return Ok(());
+        }
+    }
+}
+
 fn uv(col: usize, row: usize, width: usize, height: usize) -> [f32; 2] {
     let u = col as f64 / (width.max(2) - 1) as f64;
     let v = 1.0 - row as f64 / (height.max(2) - 1) as f64;
@@ -298,6 +357,25 @@ mod tests {
         let want = [-2.0f32 / 3.0, 2.0 / 3.0, 1.0 / 3.0];
         assert!((0..3).all(|k| (n[4][k] - want[k]).abs() < 1e-6), "{:?}", n[4]);
         assert_eq!(m.uvs.as_ref().unwrap().len(), m.positions.len());
+    }
+
+    #[test]
+    fn refinement_leaves_no_edge_longer_than_asked() {
+        let mut v = vec![
+            Vertex { col: 0, row: 0, height: 0.0 },
+            Vertex { col: 99, row: 0, height: 0.0 },
+            Vertex { col: 0, row: 99, height: 0.0 },
+            Vertex { col: 99, row: 99, height: 0.0 },
+        ];
+        refine_max_edge(&mut v, (100, 100), &|c, r| Some((c + r) as f64), 10.0).unwrap();
+        let m = triangulate(&v, (100, 100), None, &MeshOptions::default()).unwrap();
+        for t in &m.triangles {
+            for k in 0..3 {
+                let (a, b) = (m.positions[t[k] as usize], m.positions[t[(k + 1) % 3] as usize]);
+                assert!((a[0] - b[0]).hypot(a[1] - b[1]) <= 10.0, "{a:?} {b:?}");
+            }
+        }
+        assert!(refine_max_edge(&mut v, (100, 100), &|_, _| Some(0.0), 0.5).is_err());
     }
 
     #[test]
