@@ -43,6 +43,7 @@ pub mod viz;
 #[cfg(test)]
 mod testutil;
 
+pub use codec::mesh::{MeshRequest, Select, mesh_file, mesh_raster};
 pub use codec::{
     DEFAULT_TILE, DecodeOptions, Decoder, EncodeOptions, EncodeReport, Encoder, FileInfo, Sample,
     Scale, SectionChoice, SectionInfo, TileInfo, TilesInfo, Verified, decode, decode_from,
@@ -51,6 +52,8 @@ pub use codec::{
 };
 pub use container::Limits;
 pub use error::{Error, Result};
+pub use mesh::export::{MeshFormat, encode as encode_mesh};
+pub use mesh::{Mesh, MeshOptions};
 pub use methods::{
     DEFAULT_EFFORT, FisOptions, HaarOptions, Method, MethodParams, Norm, SibsonOptions, Site,
     StatValue, Stats,

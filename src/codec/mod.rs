@@ -4,6 +4,7 @@
 
 mod decode;
 mod encode;
+pub mod mesh;
 mod options;
 mod rate;
 mod tiles;

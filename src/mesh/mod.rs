@@ -4,6 +4,10 @@
 //! them as OBJ, PLY, STL and binary glTF.
 
 pub mod export;
+// The tile pyramid (`vtz tiles`) that uses it is not built yet (branch issue13).
+#[cfg_attr(not(test), allow(dead_code))]
+pub mod qmesh;
+pub mod quadtree;
 
 use crate::error::{Error, Result};
 use crate::geometry::triangulation::{MAX_COORD, Triangulation};
@@ -111,7 +115,11 @@ pub fn triangulate(
         match (opts.georeferenced, georef) {
             (true, Some(g)) => {
                 // Sample centres: an area raster's origin is the corner of pixel (0, 0).
-                let c = if g.raster_type == RasterType::Area { 0.5 } else { 0.0 };
+                let c = if g.raster_type == RasterType::Area {
+                    0.5
+                } else {
+                    0.0
+                };
                 [
                     g.origin[0] + (col + c) * g.pixel_size[0],
                     g.origin[1] - (row + c) * g.pixel_size[1],
@@ -350,28 +358,55 @@ mod tests {
         // 8 boundary vertices, 8 boundary edges: 8 new vertices, 16 wall triangles.
         assert_eq!(m.positions.len(), 9 + 8);
         assert_eq!(m.triangles.len(), 8 + 16);
-        assert!(m.positions[9..].iter().all(|p| p[2] < 0.0 || p[2] <= 2.0 * 4.0 - 20.0));
+        assert!(
+            m.positions[9..]
+                .iter()
+                .all(|p| p[2] < 0.0 || p[2] <= 2.0 * 4.0 - 20.0)
+        );
         let n = m.normals.as_ref().unwrap();
         // z = 2 (col + row) rises 2 per sample east and 2 per sample south (y falls):
         // the normal of that plane is (−2, 2, 1) / 3.
         let want = [-2.0f32 / 3.0, 2.0 / 3.0, 1.0 / 3.0];
-        assert!((0..3).all(|k| (n[4][k] - want[k]).abs() < 1e-6), "{:?}", n[4]);
+        assert!(
+            (0..3).all(|k| (n[4][k] - want[k]).abs() < 1e-6),
+            "{:?}",
+            n[4]
+        );
         assert_eq!(m.uvs.as_ref().unwrap().len(), m.positions.len());
     }
 
     #[test]
     fn refinement_leaves_no_edge_longer_than_asked() {
         let mut v = vec![
-            Vertex { col: 0, row: 0, height: 0.0 },
-            Vertex { col: 99, row: 0, height: 0.0 },
-            Vertex { col: 0, row: 99, height: 0.0 },
-            Vertex { col: 99, row: 99, height: 0.0 },
+            Vertex {
+                col: 0,
+                row: 0,
+                height: 0.0,
+            },
+            Vertex {
+                col: 99,
+                row: 0,
+                height: 0.0,
+            },
+            Vertex {
+                col: 0,
+                row: 99,
+                height: 0.0,
+            },
+            Vertex {
+                col: 99,
+                row: 99,
+                height: 0.0,
+            },
         ];
         refine_max_edge(&mut v, (100, 100), &|c, r| Some((c + r) as f64), 10.0).unwrap();
         let m = triangulate(&v, (100, 100), None, &MeshOptions::default()).unwrap();
         for t in &m.triangles {
             for k in 0..3 {
-                let (a, b) = (m.positions[t[k] as usize], m.positions[t[(k + 1) % 3] as usize]);
+                let (a, b) = (
+                    m.positions[t[k] as usize],
+                    m.positions[t[(k + 1) % 3] as usize],
+                );
                 assert!((a[0] - b[0]).hypot(a[1] - b[1]) <= 10.0, "{a:?} {b:?}");
             }
         }
