@@ -92,25 +92,30 @@ pub fn triangulate(
             "georeferenced coordinates need a georeferenced raster",
         ));
     }
-    let mut tri = Triangulation::default();
-    let mut id_of = std::collections::HashMap::with_capacity(vertices.len());
-    for (i, v) in vertices.iter().enumerate() {
+    let mut seen = std::collections::HashSet::with_capacity(vertices.len());
+    for v in vertices {
         if v.col >= width || v.row >= height {
             return Err(Error::invalid(format!(
                 "vertex ({}, {}) is outside the {width}x{height} raster",
                 v.col, v.row
             )));
         }
-        let p = [v.col as i64, v.row as i64];
-        if id_of.insert(p, i).is_some() {
+        if !seen.insert((v.col, v.row)) {
             return Err(Error::invalid(format!(
                 "two vertices at ({}, {})",
                 v.col, v.row
             )));
         }
-        tri.insert_near(p, None)?;
     }
-    // The triangulation's vertex ids follow insertion order.
+    // Insert the hull first, then along a Hilbert curve, so each point location starts
+    // next to the last (sorted input would grow the hull a column at a time, quadratically).
+    let cells: Vec<(usize, usize)> = vertices.iter().map(|v| (v.col, v.row)).collect();
+    let order = quadtree::insertion_order(&cells);
+    let mut tri = Triangulation::default();
+    for &i in &order {
+        tri.insert_near([vertices[i].col as i64, vertices[i].row as i64], None)?;
+    }
+    // The triangulation's vertex ids follow insertion order: `order` maps them back.
     let place = |col: f64, row: f64, z: f64| -> [f64; 3] {
         match (opts.georeferenced, georef) {
             (true, Some(g)) => {
@@ -137,7 +142,7 @@ pub fn triangulate(
         ..Default::default()
     };
     for t in tri.real_triangles() {
-        let v = tri.tri(t).v;
+        let v = tri.tri(t).v.map(|k| order[k as usize] as u32);
         // Counter-clockwise in (col, row) with rows going south is clockwise seen from
         // above with y north: reverse.
         mesh.triangles.push([v[0], v[2], v[1]]);
@@ -179,9 +184,10 @@ pub fn refine_max_edge(
     }
     let mut tri = Triangulation::default();
     let mut taken: std::collections::HashSet<(usize, usize)> = std::collections::HashSet::new();
-    for v in vertices.iter() {
-        tri.insert_near([v.col as i64, v.row as i64], None)?;
-        taken.insert((v.col, v.row));
+    let cells: Vec<(usize, usize)> = vertices.iter().map(|v| (v.col, v.row)).collect();
+    for i in quadtree::insertion_order(&cells) {
+        tri.insert_near([cells[i].0 as i64, cells[i].1 as i64], None)?;
+        taken.insert(cells[i]);
     }
     let too_long = |a: [i64; 2], b: [i64; 2]| {
         let (dx, dy) = ((a[0] - b[0]) as f64, (a[1] - b[1]) as f64);
