@@ -44,6 +44,7 @@ pub mod viz;
 mod testutil;
 
 pub use codec::mesh::{MeshRequest, Select, mesh_file, mesh_raster};
+pub use codec::terrain::{TerrainLevel, TerrainReport, TerrainRequest, write_terrain};
 pub use codec::{
     DEFAULT_TILE, DecodeOptions, Decoder, EncodeOptions, EncodeReport, Encoder, FileInfo, Sample,
     Scale, SectionChoice, SectionInfo, TileInfo, TilesInfo, Verified, decode, decode_from,

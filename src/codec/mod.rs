@@ -7,6 +7,7 @@ mod encode;
 pub mod mesh;
 mod options;
 mod rate;
+pub mod terrain;
 mod tiles;
 mod verify;
 

@@ -1,13 +1,13 @@
 //! Triangle meshes of a height field for 3D tools and terrain tiles: the Delaunay
 //! triangulation of a set of sites with their heights, in local or georeferenced
 //! coordinates, with normals, texture coordinates and skirts on request; `export` writes
-//! them as OBJ, PLY, STL and binary glTF.
+//! them as OBJ, PLY, STL and binary glTF; `terrain` and `qmesh` make Cesium
+//! quantized-mesh tiles.
 
 pub mod export;
-// The tile pyramid (`vtz tiles`) that uses it is not built yet (branch issue13).
-#[cfg_attr(not(test), allow(dead_code))]
 pub mod qmesh;
 pub mod quadtree;
+pub mod terrain;
 
 use crate::error::{Error, Result};
 use crate::geometry::triangulation::{MAX_COORD, Triangulation};
