@@ -43,6 +43,7 @@ pub mod viz;
 #[cfg(test)]
 mod testutil;
 
+pub use codec::Surface;
 pub use codec::mesh::{MeshRequest, Select, mesh_file, mesh_raster};
 pub use codec::terrain::{TerrainLevel, TerrainReport, TerrainRequest, write_terrain};
 pub use codec::{

@@ -2,7 +2,7 @@
 //! from any raster (the greedy sites encoder, or the quadtree detail selector), triangulated
 //! by `mesh`.
 
-use super::{Decoder, EncodeOptions, encode};
+use super::{DecodeOptions, Decoder, EncodeOptions, Surface, encode};
 use crate::error::{Error, Result};
 use crate::mesh::{self, Mesh, MeshOptions, Vertex};
 use crate::methods::Method;
@@ -40,6 +40,9 @@ pub struct MeshRequest {
     pub max_edge: Option<f64>,
     /// Placement and attributes.
     pub mesh: MeshOptions,
+    /// The surface that gives heights to vertices that are not sites (`max_edge`) when
+    /// meshing a `.vtz`'s sites.
+    pub surface: Surface,
 }
 
 impl Default for MeshRequest {
@@ -51,6 +54,7 @@ impl Default for MeshRequest {
             select: Select::Greedy,
             max_edge: None,
             mesh: MeshOptions::default(),
+            surface: Surface::Sibson,
         }
     }
 }
@@ -120,12 +124,21 @@ pub fn mesh_file<R: Read + Seek>(d: &mut Decoder<R>, req: &MeshRequest) -> Resul
             .sections
             .iter()
             .any(|s| s.method == Some(Method::SIBSON));
+    if req.surface != Surface::Sibson && !has_sites {
+        return Err(Error::invalid(
+            "--surface needs a .vtz with a sites section",
+        ));
+    }
     if !has_sites || req.select != Select::Greedy || req.max_error.is_some() {
         if req.levels.is_some() {
             return Err(Error::invalid(
                 "--level needs an untiled .vtz with a sites section (and greedy selection)",
             ));
         }
+        d.options(DecodeOptions {
+            surface: req.surface,
+            ..Default::default()
+        });
         let r = d.decode()?;
         return mesh_raster(&r, req);
     }
@@ -144,6 +157,10 @@ pub fn mesh_file<R: Read + Seek>(d: &mut Decoder<R>, req: &MeshRequest) -> Resul
         })
         .collect();
     let surface = if req.max_edge.is_some() {
+        d.options(DecodeOptions {
+            surface: req.surface,
+            ..Default::default()
+        });
         Some(d.decode()?)
     } else {
         None

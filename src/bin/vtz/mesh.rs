@@ -53,6 +53,10 @@ pub struct Args {
     /// No triangle edge longer than L samples.
     #[arg(long, value_name = "L")]
     pub max_edge: Option<f64>,
+    /// A .vtz's sites: the surface giving heights to added vertices (--max-edge), or the
+    /// decoded raster a selection reads: sibson (the coded one), linear or basis.
+    #[arg(long, default_value = "sibson", value_parser = ["sibson", "linear", "basis"])]
+    pub surface: String,
     /// Input raster format, when the extension does not tell.
     #[arg(long, value_name = "FMT")]
     pub format: Option<String>,
@@ -95,10 +99,16 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     req.mesh.normals = a.normals;
     req.mesh.uvs = a.uvs;
     req.mesh.skirt = a.skirt;
+    req.surface = a.surface.parse()?;
     let is_vtz = in_format.map_or_else(
         || vtz::formats::Format::from_path(&a.input).ok() == Some(vtz::formats::Format::Vtz),
         |f| f == vtz::formats::Format::Vtz,
     );
+    if req.surface != vtz::Surface::Sibson && !is_vtz {
+        return Err(vtz::Error::invalid(
+            "--surface applies to a .vtz's sites; a raster input is meshed from its samples",
+        ));
+    }
     let mesh = ui
         .busy("meshing", || {
             if is_vtz {
