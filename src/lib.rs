@@ -55,7 +55,7 @@ pub use codec::{
 pub use container::Limits;
 pub use error::{Error, Result};
 pub use mesh::export::{MeshFormat, encode as encode_mesh};
-pub use mesh::{Mesh, MeshOptions};
+pub use mesh::{Fit as MeshFit, Mesh, MeshOptions};
 pub use methods::{
     DEFAULT_EFFORT, FisOptions, HaarOptions, Method, MethodParams, Norm, SibsonOptions, Site,
     StatValue, Stats,

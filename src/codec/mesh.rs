@@ -67,6 +67,7 @@ pub fn mesh_raster(raster: &Raster, req: &MeshRequest) -> Result<Mesh> {
             "--level needs a .vtz input with a sites section",
         ));
     }
+    let mut bound = None;
     let mut vertices = match req.select {
         Select::Greedy => {
             let mut o = EncodeOptions {
@@ -76,16 +77,21 @@ pub fn mesh_raster(raster: &Raster, req: &MeshRequest) -> Result<Mesh> {
             };
             match (req.sites, req.max_error) {
                 (Some(n), _) => o.params.sibson.sites = Some(n),
-                (None, b) => o.max_error = Some(b.unwrap_or(ErrorBound::PercentOfRange(1.0))),
+                (None, b) => {
+                    let b = b.unwrap_or(ErrorBound::PercentOfRange(1.0));
+                    bound = Some(b.absolute(raster.valid_range()));
+                    o.max_error = Some(b);
+                }
             }
             let bytes = encode(raster, &o)?;
             let mut d = Decoder::new(std::io::Cursor::new(bytes))?;
+            // Each vertex at its sample's own height (the file stores them quantized).
             d.sites()?
                 .into_iter()
                 .map(|s| Vertex {
                     col: s.col,
                     row: s.row,
-                    height: s.height,
+                    height: raster.data[s.row * raster.width + s.col],
                 })
                 .collect::<Vec<_>>()
         }
@@ -113,6 +119,7 @@ pub fn mesh_raster(raster: &Raster, req: &MeshRequest) -> Result<Mesh> {
         raster.georef.as_ref(),
         Some(raster),
         req,
+        bound,
     )
 }
 
@@ -156,35 +163,60 @@ pub fn mesh_file<R: Read + Seek>(d: &mut Decoder<R>, req: &MeshRequest) -> Resul
             height: s.height,
         })
         .collect();
-    let surface = if req.max_edge.is_some() {
-        d.options(DecodeOptions {
-            surface: req.surface,
-            ..Default::default()
-        });
-        Some(d.decode()?)
-    } else {
-        None
-    };
+    // The decoded surface gives added vertices their heights and measures the fit.
+    d.options(DecodeOptions {
+        surface: req.surface,
+        ..Default::default()
+    });
+    let surface = d.decode()?;
     let info = d.info();
     let size = (info.width as usize, info.height as usize);
     let georef = info.georef.clone();
-    finish(&mut vertices, size, georef.as_ref(), surface.as_ref(), req)
+    finish(
+        &mut vertices,
+        size,
+        georef.as_ref(),
+        Some(&surface),
+        req,
+        None,
+    )
 }
 
-/// Refine to the maximum edge (heights from `surface`'s samples) and triangulate.
+/// Refine to the maximum edge and to `bound` (heights from `surface`'s samples), measure
+/// the fit, and triangulate. Added vertices can lengthen edges and splitting edges can move
+/// the surface, so the two refinements alternate until neither adds a vertex.
 fn finish(
     vertices: &mut Vec<Vertex>,
     size: (usize, usize),
     georef: Option<&crate::model::Georef>,
     surface: Option<&Raster>,
     req: &MeshRequest,
+    bound: Option<f64>,
 ) -> Result<Mesh> {
-    if let (Some(l), Some(r)) = (req.max_edge, surface) {
+    let mut fit = None;
+    if let Some(r) = surface {
         let at = |c: usize, row: usize| {
             let i = row * r.width + c;
             r.is_valid(i).then(|| r.data[i])
         };
-        mesh::refine_max_edge(vertices, size, &at, l)?;
+        let mut added = 0;
+        for _ in 0..16 {
+            let before = vertices.len();
+            if let Some(l) = req.max_edge {
+                mesh::refine_max_edge(vertices, size, &at, l)?;
+            }
+            if let Some(b) = bound {
+                added += mesh::refine_to_bound(vertices, size, &at, b)?.added;
+            }
+            if vertices.len() == before || (req.max_edge.is_none() || bound.is_none()) {
+                break;
+            }
+        }
+        if vertices.len() >= 3 {
+            let mut f = mesh::fit(vertices, size, &at)?;
+            f.added = added;
+            fit = Some(f);
+        }
     }
     if vertices.len() < 3 {
         return Err(Error::invalid(format!(
@@ -192,5 +224,7 @@ fn finish(
             vertices.len()
         )));
     }
-    mesh::triangulate(vertices, size, georef, &req.mesh)
+    let mut m = mesh::triangulate(vertices, size, georef, &req.mesh)?;
+    m.fit = fit;
+    Ok(m)
 }

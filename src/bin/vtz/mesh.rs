@@ -11,8 +11,9 @@ pub struct Args {
     /// Output mesh: .obj, .ply, .stl or .glb.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Greedy sites within E data units or E% of the range (default 1% for rasters; a
-    /// .vtz's own sites otherwise).
+    /// Greedy sites, then vertices added until every sample is within E data units or E%
+    /// of the range of the mesh's triangles (default 1% for rasters; a .vtz's own sites
+    /// otherwise).
     #[arg(long, value_name = "E", conflicts_with = "sites")]
     pub max_error: Option<String>,
     /// The first N sites.
@@ -131,11 +132,16 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             serde_json::json!({
                 "input": a.input, "output": a.output, "format": out_format.name(),
                 "vertices": mesh.positions.len(), "triangles": mesh.triangles.len(), "bytes": n,
+                "max_error": mesh.fit.map(|f| f.max_error), "rmse": mesh.fit.map(|f| f.rmse),
+                "samples": mesh.fit.map(|f| f.samples), "added": mesh.fit.map(|f| f.added),
             })
         );
     } else {
+        let fit = mesh.fit.map_or_else(String::new, |f| {
+            format!(", max error {:.4}, RMSE {:.4}", f.max_error, f.rmse)
+        });
         ui.say(format!(
-            "{}: {} vertices, {} triangles, {n} bytes ({})",
+            "{}: {} vertices, {} triangles, {n} bytes ({}){fit}",
             a.output.display(),
             mesh.positions.len(),
             mesh.triangles.len(),
