@@ -251,11 +251,8 @@ fn horizon_point(pts: &[[f64; 3]], centre: [f64; 3]) -> [f64; 3] {
         }
     }
     let mag = if mag > 0.0 { mag } else { 1.0 };
-    [
-        d[0] * mag / scale[0],
-        d[1] * mag / scale[1],
-        d[2] * mag / scale[2],
-    ]
+    // In the ellipsoid-scaled frame, as the format stores it (not multiplied back to metres).
+    [d[0] * mag, d[1] * mag, d[2] * mag]
 }
 
 #[cfg(test)]
@@ -356,6 +353,25 @@ mod tests {
         let cx = f64::from_le_bytes(b[0..8].try_into().unwrap());
         let cz = f64::from_le_bytes(b[16..24].try_into().unwrap());
         assert!(cx < 0.0 && cz > 2.0e6, "{cx} {cz}");
+    }
+
+    #[test]
+    fn the_horizon_point_is_in_the_ellipsoid_scaled_frame() {
+        let pts: Vec<[f64; 3]> = [(10.0, 45.0, 0.0), (10.1, 45.0, 3000.0), (10.0, 45.1, 100.0)]
+            .iter()
+            .map(|&(lo, la, h)| ecef(lo, la, h))
+            .collect();
+        let c = [
+            (pts[0][0] + pts[1][0] + pts[2][0]) / 3.0,
+            (pts[0][1] + pts[1][1] + pts[2][1]) / 3.0,
+            (pts[0][2] + pts[1][2] + pts[2][2]) / 3.0,
+        ];
+        let h = horizon_point(&pts, c);
+        let m = (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt();
+        // Just above the unit sphere of the scaled frame (3 km of relief), not in metres.
+        assert!(m > 1.0 && m < 1.01, "{m}");
+        // The independent check (every vertex above the horizon seen from it) is
+        // tests/js/check_terrain.mjs, run by .ci/run.
     }
 
     #[test]

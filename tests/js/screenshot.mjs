@@ -208,7 +208,7 @@ try {
       pageProblems.push(`three.js loaded no triangles: ${JSON.stringify(s)}`);
     }
     const secs = ((Date.now() - t1) / 1000).toFixed(1);
-    const info = name === 'terrain'
+    const info = state.stats === undefined ? 'the page set no stats' : name === 'terrain'
       ? `${served.tiles} tiles served (${(served.tileBytes / 1e6).toFixed(2)} MB), ${s.tilesRendered} rendered at levels ${JSON.stringify(s.levelsRendered)}, ` +
         `sampled heights ${s.sampledMinHeight?.toFixed(1)}..${s.sampledMaxHeight?.toFixed(1)} m over ${s.sampled} points`
       : `${s.meshes} meshes, ${s.vertices} vertices, ${s.triangles} triangles, ${s.withNormals} with normals, size ${JSON.stringify(s.size?.map((v) => +v.toFixed(1)))}`;
