@@ -35,7 +35,10 @@ pub struct MeshOptions {
     /// Heights are multiplied by this (vertical exaggeration).
     pub z_scale: f64,
     /// Georeferenced coordinates (the raster's CRS units, sample centres) instead of local
-    /// ones (one unit per sample, the south-west sample at the origin).
+    /// ones: the south-west sample at the origin, one sample apart = the ground distance in
+    /// the height's units when the raster is georeferenced (a geographic CRS's degrees
+    /// converted to metres at the raster's middle latitude; a projected CRS's units taken as
+    /// the heights'), so the mesh has its true proportions; one unit per sample otherwise.
     pub georeferenced: bool,
     /// Compute vertex normals.
     pub normals: bool,
@@ -117,6 +120,7 @@ pub fn triangulate(
     for &i in &order {
         tri.insert_near([vertices[i].col as i64, vertices[i].row as i64], None)?;
     }
+    let spacing = ground_spacing(georef, height);
     // The triangulation's vertex ids follow insertion order: `order` maps them back.
     let place = |col: f64, row: f64, z: f64| -> [f64; 3] {
         match (opts.georeferenced, georef) {
@@ -133,7 +137,11 @@ pub fn triangulate(
                     z * opts.z_scale,
                 ]
             }
-            _ => [col, (height - 1) as f64 - row, z * opts.z_scale],
+            _ => [
+                col * spacing[0],
+                ((height - 1) as f64 - row) * spacing[1],
+                z * opts.z_scale,
+            ],
         }
     };
     let mut mesh = Mesh {
@@ -225,6 +233,34 @@ pub fn refine_max_edge(
         if added == 0 {
             return Ok(());
         }
+    }
+}
+
+/// Ground distance between neighbouring samples (east, north) for local coordinates: the
+/// pixel size in the CRS's units, degrees of a geographic CRS (EPSG 4326, 4269, 4258, 4283,
+/// 4617 or a WKT starting GEOGCS) converted to metres at the raster's middle latitude; 1 × 1
+/// without georeferencing.
+fn ground_spacing(georef: Option<&Georef>, height: usize) -> [f64; 2] {
+    let Some(g) = georef else {
+        return [1.0, 1.0];
+    };
+    let (sx, sy) = (g.pixel_size[0].abs(), g.pixel_size[1].abs());
+    if !(sx > 0.0 && sy > 0.0 && sx.is_finite() && sy.is_finite()) {
+        return [1.0, 1.0];
+    }
+    let geographic = matches!(g.epsg, Some(4326 | 4269 | 4258 | 4283 | 4617))
+        || g.wkt
+            .as_deref()
+            .is_some_and(|w| w.trim_start().starts_with("GEOGCS"));
+    if geographic {
+        let lat = (g.origin[1] - g.pixel_size[1] * height as f64 / 2.0).clamp(-89.0, 89.0);
+        // WGS84 metres per degree of longitude and of latitude at `lat`.
+        let r = lat.to_radians();
+        let east = 111_412.84 * r.cos() - 93.5 * (3.0 * r).cos();
+        let north = 111_132.92 - 559.82 * (2.0 * r).cos() + 1.175 * (4.0 * r).cos();
+        [sx * east, sy * north]
+    } else {
+        [sx, sy]
     }
 }
 

@@ -127,6 +127,17 @@ impl GeoGrid<'_> {
         if wsum > 0.0 { sum / wsum } else { 0.0 }
     }
 
+    /// Whether a point is more than half a sample outside the sample centres (where
+    /// [`GeoGrid::height_at`] gives 0).
+    pub fn outside(&self, lon: f64, lat: f64) -> bool {
+        let fc = (lon - self.lon0) / self.dlon;
+        let fr = (self.lat0 - lat) / self.dlat;
+        !(fc >= -0.5
+            && fr >= -0.5
+            && fc <= (self.width - 1) as f64 + 0.5
+            && fr <= (self.height - 1) as f64 + 0.5)
+    }
+
     fn col_lon(&self, c: usize) -> f64 {
         self.lon0 + c as f64 * self.dlon
     }
@@ -327,6 +338,19 @@ fn edge(
             }
         }
     }
+    // Beyond the raster (more than half a sample out) the surface is sea level: points there,
+    // a sample apart (at most 256 per edge), keep the edge at 0 up to the data, so the
+    // raster's border is a cliff, not a slope across the tile.
+    let step = (grid.spacing() / u).max(Q as f64 / 256.0);
+    let mut t = 0.0;
+    while t <= Q as f64 {
+        let k = t.round() as u64;
+        let (lo, la) = point(k);
+        if grid.outside(lo, la) {
+            cross.push((k as f64, 0.0));
+        }
+        t += step;
+    }
     cross.sort_by(|p, q| p.0.total_cmp(&q.0));
     let mut chosen: Vec<(u64, u16)> = vec![(0, code_at(0)), (Q, code_at(Q))];
     // Split segments until none is over the target (or too short to split).
@@ -441,6 +465,62 @@ pub fn build_tile(
             let h = hs.code(grid.data[r * grid.width + c]);
             if add(&mut verts, V { u: a, v: b, h }) {
                 stats.seeded += 1;
+            }
+        }
+    }
+    // The raster's outline (half a sample beyond its outer sample centres) inside the tile,
+    // at sea level, a sample apart (at most 256 per tile side): the data ends in a cliff.
+    {
+        let [ow, os, oe, on] = grid.extent();
+        let (hx, hy) = (grid.dlon / 2.0, grid.dlat / 2.0);
+        let (ow, os, oe, on) = (ow - hx, os - hy, oe + hx, on + hy);
+        let step = (grid.spacing() / u).max(Q as f64 / 256.0);
+        // The first quantized position strictly beyond `x` (outward `dir`), if interior.
+        let beyond = |x: f64, origin: f64, dir: f64| -> Option<u16> {
+            let t = (x - origin) / u;
+            let k = if dir > 0.0 {
+                t.floor() + 1.0
+            } else {
+                t.ceil() - 1.0
+            };
+            (k >= 1.0 && k <= (Q - 1) as f64).then_some(k as u16)
+        };
+        let span = |lo: f64, hi: f64, origin: f64| -> Vec<u16> {
+            let a = ((lo - origin) / u).max(1.0);
+            let b = ((hi - origin) / u).min((Q - 1) as f64);
+            let mut out = Vec::new();
+            let mut t = a;
+            while t <= b {
+                out.push(t.round() as u16);
+                t += step;
+            }
+            if a <= b {
+                out.push(b.round() as u16);
+            }
+            out
+        };
+        let mut outline: Vec<(u16, u16)> = Vec::new();
+        for (x, dir) in [(ow, -1.0), (oe, 1.0)] {
+            if let Some(a) = beyond(x, rect[0], dir) {
+                outline.extend(span(os - hy, on + hy, rect[1]).into_iter().map(|b| (a, b)));
+            }
+        }
+        for (y, dir) in [(os, -1.0), (on, 1.0)] {
+            if let Some(b) = beyond(y, rect[1], dir) {
+                outline.extend(span(ow - hx, oe + hx, rect[0]).into_iter().map(|a| (a, b)));
+            }
+        }
+        for (a, b) in outline {
+            let (lo, la) = (lon(z, gx0 + a as u64), lat(z, gy0 + b as u64));
+            if grid.outside(lo, la) {
+                add(
+                    &mut verts,
+                    V {
+                        u: a,
+                        v: b,
+                        h: hs.code(0.0),
+                    },
+                );
             }
         }
     }

@@ -177,10 +177,18 @@ try {
       const u = r.url();
       if (!u.startsWith(origin) && !u.startsWith('data:') && !u.startsWith('blob:')) pageProblems.push(`asked for ${u}, off this machine`);
     });
+    const answered = new Set();
     page.on('response', (r) => {
       if (r.status() >= 400) console.log(`  [${name}] HTTP ${r.status()} ${r.url()}`);
+      else answered.add(r.url());
     });
-    page.on('requestfailed', (r) => pageProblems.push(`request failed: ${r.url()} (${r.failure()?.errorText})`));
+    page.on('requestfailed', (r) => {
+      const why = r.failure()?.errorText;
+      // Chromium sometimes reports a fetch whose body was read to the end (the page then
+      // rendered it) as aborted; a request that got its answer is not a failure.
+      if (why === 'net::ERR_ABORTED' && answered.has(r.url())) return;
+      pageProblems.push(`request failed: ${r.url()} (${why})`);
+    });
     const t1 = Date.now();
     await page.goto(`${origin}/view/${html}`);
     try {
