@@ -273,7 +273,7 @@ pub struct Fit {
     pub max_error: f64,
     /// Root mean square error.
     pub rmse: f64,
-    /// Vertices [`refine_to_bound`] added.
+    /// Vertices added to meet the bound (`vtz mesh --max-error`).
     pub added: usize,
 }
 
@@ -399,7 +399,7 @@ pub fn refine_to_bound(
         cache = next;
         let top = worst.iter().map(|w| w.0).fold(0.0, f64::max);
         let cut = (top * 0.8).max(bound);
-        worst.sort_unstable_by(|a, b| (a.1, a.2).cmp(&(b.1, b.2)));
+        worst.sort_unstable_by_key(|w| (w.1, w.2));
         let mut n = 0;
         for (e, c, r) in worst {
             if e < cut && cut > bound {
