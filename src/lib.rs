@@ -32,6 +32,7 @@ mod entropy;
 mod error;
 pub mod formats;
 mod geometry;
+mod mesh;
 mod methods;
 pub mod metrics;
 mod model;
@@ -42,6 +43,9 @@ pub mod viz;
 #[cfg(test)]
 mod testutil;
 
+pub use codec::Surface;
+pub use codec::mesh::{MeshRequest, Select, mesh_file, mesh_raster};
+pub use codec::terrain::{TerrainLevel, TerrainReport, TerrainRequest, write_terrain};
 pub use codec::{
     DEFAULT_TILE, DecodeOptions, Decoder, EncodeOptions, EncodeReport, Encoder, FileInfo, Sample,
     Scale, SectionChoice, SectionInfo, TileInfo, TilesInfo, Verified, decode, decode_from,
@@ -50,6 +54,8 @@ pub use codec::{
 };
 pub use container::Limits;
 pub use error::{Error, Result};
+pub use mesh::export::{MeshFormat, encode as encode_mesh};
+pub use mesh::{Fit as MeshFit, Mesh, MeshOptions};
 pub use methods::{
     DEFAULT_EFFORT, FisOptions, HaarOptions, Method, MethodParams, Norm, SibsonOptions, Site,
     StatValue, Stats,

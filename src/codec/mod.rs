@@ -4,13 +4,17 @@
 
 mod decode;
 mod encode;
+pub mod mesh;
 mod options;
 mod rate;
+mod surface;
+pub mod terrain;
 mod tiles;
 mod verify;
 
 pub use encode::EncodeReport;
 pub use options::{DecodeOptions, EncodeOptions, Scale, SectionChoice};
+pub use surface::Surface;
 pub use tiles::{DEFAULT_TILE, tile_count};
 pub use verify::Verified;
 
@@ -509,6 +513,7 @@ impl<R: Read + Seek> Decoder<R> {
                 r
             }
         };
+        let r = self.resurface(r)?;
         progress(1.0);
         Ok(r)
     }
@@ -526,9 +531,17 @@ impl<R: Read + Seek> Decoder<R> {
                 "a band-by-band decode cannot resample (--scale)",
             ));
         }
+        if self.opts.surface != Surface::Sibson && self.info.tiles.is_some() {
+            return Err(Error::invalid(
+                "another surface than sibson needs an untiled file whose primary section is sites",
+            ));
+        }
         progress(0.0);
         match &mut self.rd {
-            Opened::Untiled(rd) => sink(decode::decode_reader(rd, &self.opts, progress)?)?,
+            Opened::Untiled(rd) => {
+                let r = decode::decode_reader(rd, &self.opts, progress)?;
+                sink(self.resurface(r)?)?
+            }
             Opened::Tiled(rd) => {
                 self.skipped = tiles::decode_bands(rd, &self.opts, sink, progress)?;
             }
@@ -571,6 +584,39 @@ impl<R: Read + Seek> Decoder<R> {
             }
         }
         Ok(out)
+    }
+
+    /// The decode of the sites through another surface than Sibson's (`opts.surface`).
+    fn resurface(&mut self, mut r: Raster) -> Result<Raster> {
+        if self.opts.surface == Surface::Sibson {
+            return Ok(r);
+        }
+        let primary_sites = self.info.tiles.is_none()
+            && self
+                .info
+                .sections
+                .get(self.info.primary)
+                .and_then(|s| s.method)
+                == Some(Method::SIBSON);
+        if !primary_sites || self.opts.section != SectionChoice::Primary {
+            return Err(Error::invalid(
+                "another surface than sibson needs an untiled file whose primary section is \
+                 sites (the other methods are coded against their own surface)",
+            ));
+        }
+        if self.opts.window.is_some() || self.opts.scale.is_some() {
+            return Err(Error::invalid(
+                "another surface than sibson decodes the whole grid (no window or scale)",
+            ));
+        }
+        let all = self.sites()?;
+        let n = match (self.opts.sites, self.opts.levels) {
+            (Some(n), _) => n.min(all.len()),
+            (None, Some(k)) => all.iter().take_while(|s| s.level < k).count(),
+            (None, None) => all.len(),
+        };
+        surface::resurface(&mut r, &all[..n], self.opts.surface)?;
+        Ok(r)
     }
 
     /// The stored sites of the file's sites section (the primary one when it is one),

@@ -135,4 +135,7 @@ pub struct DecodeOptions {
     /// Tiled files: a tile that fails its checksum or its decode becomes nodata (listed by
     /// [`Decoder::skipped`](crate::Decoder::skipped)) instead of failing the decode.
     pub skip_corrupt: bool,
+    /// Sites files: the surface through the sites (default Sibson, the one coded; the
+    /// others ignore the file's bound).
+    pub surface: super::surface::Surface,
 }

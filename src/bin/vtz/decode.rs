@@ -37,6 +37,11 @@ pub struct Args {
     /// the rest, instead of failing.
     #[arg(long)]
     pub skip_corrupt: bool,
+    /// Sites files: the surface through the sites. sibson is the one the file codes (its
+    /// bound holds); linear (the sites' triangles) and basis (the basis-function surface of
+    /// the digital-terrain-model paper) are for comparison and ignore the bound.
+    #[arg(long, default_value = "sibson", value_parser = ["sibson", "linear", "basis"])]
+    pub surface: String,
     /// Replace an existing output file.
     #[arg(short, long)]
     pub force: bool,
@@ -69,6 +74,13 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             .build_global();
     }
     opts.skip_corrupt = a.skip_corrupt;
+    opts.surface = a.surface.parse()?;
+    if opts.surface != vtz::Surface::Sibson {
+        ui.say(format!(
+            "note: decoding through the {} surface of the sites: the file's error bound holds for the sibson surface only",
+            a.surface.to_ascii_lowercase()
+        ));
+    }
     let file = std::fs::File::open(&a.input)
         .map_err(|e| vtz::Error::io(a.input.display().to_string(), e))?;
     let mut d = vtz::Decoder::with_limits(std::io::BufReader::new(file), opts.limits)

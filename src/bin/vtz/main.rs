@@ -23,9 +23,11 @@ mod convert;
 mod decode;
 mod encode;
 mod info;
+mod mesh;
 mod rd;
 mod render;
 mod sites;
+mod tiles;
 mod verify;
 
 use clap::{Parser, Subcommand};
@@ -56,6 +58,10 @@ enum Cmd {
     Convert(convert::Args),
     /// List a .vtz file's sites (importance rank, level, position, height) as CSV.
     Sites(sites::Args),
+    /// A raster or .vtz as a triangle mesh: OBJ, PLY, STL or binary glTF (.glb).
+    Mesh(mesh::Args),
+    /// A geographic raster or .vtz as Cesium terrain tiles (quantized-mesh-1.0, layer.json).
+    Tiles(tiles::Args),
     /// Draw a raster or .vtz as a shaded relief PNG (optionally with its sites).
     Render(render::Args),
     /// Check .vtz files end to end: every checksum, every section decoded, the decodes
@@ -75,6 +81,8 @@ fn main() -> ExitCode {
         Cmd::Compare(a) => compare::run(a, &ui),
         Cmd::Convert(a) => convert::run(a, &ui),
         Cmd::Sites(a) => sites::run(a, &ui),
+        Cmd::Mesh(a) => mesh::run(a, &ui),
+        Cmd::Tiles(a) => tiles::run(a, &ui),
         Cmd::Render(a) => render::run(a, &ui),
         Cmd::Rd(a) => rd::run(a, &ui),
         Cmd::Verify(a) => verify::run(a, &ui),

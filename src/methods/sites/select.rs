@@ -68,6 +68,9 @@ pub struct Selection {
     pub sites: Vec<(u32, i64)>,
     /// Number of leading sites that are the convex hull.
     pub hull: usize,
+    /// Per site after the hull: the largest error of the surface of the sites before it
+    /// (the error it was picked for). Read by the terrain pyramid to cut prefixes at a bound.
+    pub errors: Vec<f32>,
 }
 
 /// Convex hull (counter-clockwise, no collinear points) of the valid samples' positions.
@@ -447,6 +450,7 @@ pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> R
             .insert_near(q, height_of(code, p.step, p.offset), Some(hint))?;
         st.is_site[i] = true;
         sel.sites.push((i as u32, code));
+        sel.errors.push(e as f32);
         if debug && sel.sites.len().is_power_of_two() {
             eprintln!("select: {} sites, {} evaluations", sel.sites.len(), st.evals);
         }

@@ -1,0 +1,103 @@
+//! `vtz tiles`: a geographic raster or .vtz as a Cesium quantized-mesh-1.0 terrain pyramid.
+
+use crate::common::{self, RasterOpts, Ui};
+use std::path::PathBuf;
+use vtz::{ErrorBound, Result, TerrainRequest};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Input: a raster in geographic coordinates (EPSG:4326: SRTM .hgt, a geographic
+    /// GeoTIFF) or a .vtz of one.
+    pub input: PathBuf,
+    /// Output directory: layer.json and {z}/{x}/{y}.terrain (TMS geographic scheme).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Every raster sample within E data units or E% of the range of the finest level's
+    /// mesh (default 1%); coarser levels meet Cesium's geometric error of their zoom.
+    #[arg(long, value_name = "E")]
+    pub max_error: Option<String>,
+    /// The finest zoom (default: the first whose tiles span at most 256 samples).
+    #[arg(long, value_name = "Z")]
+    pub max_zoom: Option<u8>,
+    /// Leave out the oct-encoded vertex normals extension.
+    #[arg(long)]
+    pub no_normals: bool,
+    /// Leave out the water mask extension (sea: flat regions at or below 0).
+    #[arg(long)]
+    pub no_water_mask: bool,
+    /// Gzip each tile (serve them with Content-Encoding: gzip).
+    #[arg(long)]
+    pub gzip: bool,
+    /// Beside each tile, {z}/{x}/{y}.json with its vertices and triangles in file order
+    /// (for checking the tiles with another decoder).
+    #[arg(long)]
+    pub dump_json: bool,
+    /// Input raster format, when the extension does not tell.
+    #[arg(long, value_name = "FMT")]
+    pub format: Option<String>,
+    /// Replace an existing output directory (only one holding a layer.json).
+    #[arg(short, long)]
+    pub force: bool,
+    /// Print the result as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub raster: RasterOpts,
+}
+
+pub fn run(a: Args, ui: &Ui) -> Result<()> {
+    let in_format = common::parse_format(a.format.as_deref())?;
+    common::check_distinct(&a.input, &a.output)?;
+    let mut req = TerrainRequest::default();
+    req.max_error = a.max_error.as_deref().map(ErrorBound::parse).transpose()?;
+    req.max_zoom = a.max_zoom;
+    req.normals = !a.no_normals;
+    req.water_mask = !a.no_water_mask;
+    req.gzip = a.gzip;
+    req.expected_json = a.dump_json;
+    let r = common::read_raster(&a.input, in_format, &a.raster)?;
+    let report = ui
+        .progress("tiling", |p| {
+            vtz::write_terrain(&r, &req, &a.output, a.force, p)
+        })
+        .map_err(|e| e.context(a.input.display()))?;
+    if a.json {
+        let levels: Vec<_> = report
+            .levels
+            .iter()
+            .map(|l| {
+                serde_json::json!({
+                    "zoom": l.zoom, "tiles": l.tiles, "geometric_error": l.geometric_error,
+                    "target": l.target, "sites": l.sites, "vertices": l.vertices,
+                    "triangles": l.triangles, "added": l.added, "samples": l.samples,
+                    "max_error": l.max_error, "rmse": l.rmse, "over": l.over, "bytes": l.bytes,
+                })
+            })
+            .collect();
+        outln!(
+            "{}",
+            serde_json::json!({
+                "input": a.input, "output": a.output, "max_error": report.bound,
+                "height_step": report.height_step, "bounds": report.bounds,
+                "sites": report.sites, "tiles": report.tiles(), "bytes": report.bytes(),
+                "levels": levels,
+            })
+        );
+    } else {
+        for l in &report.levels {
+            ui.say(format!(
+                "zoom {:>2}: {:>4} tiles, {:>8} vertices, {:>9} bytes, bound {:>9.2} (max error {:.2}, RMSE {:.2})",
+                l.zoom, l.tiles, l.vertices, l.bytes, l.target, l.max_error, l.rmse
+            ));
+        }
+        ui.say(format!(
+            "{}: {} tiles, {} bytes, zooms 0–{}, max error ≤ {} at the finest zoom",
+            a.output.display(),
+            report.tiles(),
+            report.bytes(),
+            report.levels.len() - 1,
+            report.bound
+        ));
+    }
+    Ok(())
+}
