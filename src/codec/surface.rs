@@ -5,7 +5,6 @@
 
 use crate::error::{Error, Result};
 use crate::geometry::basis::{BasisSurface, Params};
-use crate::geometry::triangulation::Triangulation;
 use crate::methods::Site;
 use crate::model::Raster;
 use std::str::FromStr;
@@ -46,13 +45,8 @@ pub(crate) fn resurface(r: &mut Raster, sites: &[Site], surface: Surface) -> Res
         return Ok(());
     }
     let cells: Vec<(usize, usize)> = sites.iter().map(|s| (s.col, s.row)).collect();
-    let order = crate::mesh::quadtree::insertion_order(&cells);
-    let mut tri = Triangulation::default();
-    let mut heights = Vec::with_capacity(sites.len());
-    for &i in &order {
-        tri.insert_near([sites[i].col as i64, sites[i].row as i64], None)?;
-        heights.push(sites[i].height);
-    }
+    let (tri, order) = crate::mesh::delaunay(&cells)?;
+    let heights: Vec<f64> = order.iter().map(|&i| sites[i].height).collect();
     let params = match surface {
         Surface::Linear => Params::polyhedral(),
         _ => Params::expanded(0.25, 0.25),

@@ -112,14 +112,8 @@ pub fn triangulate(
             )));
         }
     }
-    // Insert the hull first, then along a Hilbert curve, so each point location starts
-    // next to the last (sorted input would grow the hull a column at a time, quadratically).
     let cells: Vec<(usize, usize)> = vertices.iter().map(|v| (v.col, v.row)).collect();
-    let order = quadtree::insertion_order(&cells);
-    let mut tri = Triangulation::default();
-    for &i in &order {
-        tri.insert_near([vertices[i].col as i64, vertices[i].row as i64], None)?;
-    }
+    let (tri, order) = delaunay(&cells)?;
     let spacing = ground_spacing(georef, height);
     // The triangulation's vertex ids follow insertion order: `order` maps them back.
     let place = |col: f64, row: f64, z: f64| -> [f64; 3] {
@@ -192,13 +186,9 @@ pub fn refine_max_edge(
             "a maximum edge of {max_edge} samples is not a number ≥ 2"
         )));
     }
-    let mut tri = Triangulation::default();
-    let mut taken: std::collections::HashSet<(usize, usize)> = std::collections::HashSet::new();
     let cells: Vec<(usize, usize)> = vertices.iter().map(|v| (v.col, v.row)).collect();
-    for i in quadtree::insertion_order(&cells) {
-        tri.insert_near([cells[i].0 as i64, cells[i].1 as i64], None)?;
-        taken.insert(cells[i]);
-    }
+    let (mut tri, _) = delaunay(&cells)?;
+    let mut taken: std::collections::HashSet<(usize, usize)> = cells.iter().copied().collect();
     let too_long = |a: [i64; 2], b: [i64; 2]| {
         let (dx, dy) = ((a[0] - b[0]) as f64, (a[1] - b[1]) as f64);
         dx * dx + dy * dy > max_edge * max_edge
@@ -286,40 +276,21 @@ fn each_error(
     mut f: impl FnMut(usize, usize, usize, f64),
 ) -> Result<()> {
     let cells: Vec<(usize, usize)> = vertices.iter().map(|v| (v.col, v.row)).collect();
-    let order = quadtree::insertion_order(&cells);
-    let mut tri = Triangulation::default();
-    for &i in &order {
-        tri.insert_near([cells[i].0 as i64, cells[i].1 as i64], None)?;
-    }
+    let (tri, order) = delaunay(&cells)?;
     let mut seen = vec![false; width * height];
     for (k, t) in tri.real_triangles().enumerate() {
         let ids = tri.tri(t).v.map(|v| order[v as usize]);
         let p = ids.map(|i| [vertices[i].col as f64, vertices[i].row as f64]);
         let h = ids.map(|i| vertices[i].height);
-        let det =
-            (p[1][0] - p[0][0]) * (p[2][1] - p[0][1]) - (p[2][0] - p[0][0]) * (p[1][1] - p[0][1]);
-        if det == 0.0 {
-            continue;
-        }
-        let c0 = p.iter().map(|q| q[0]).fold(f64::INFINITY, f64::min) as usize;
-        let c1 = (p.iter().map(|q| q[0]).fold(0.0, f64::max) as usize).min(width - 1);
-        let r0 = p.iter().map(|q| q[1]).fold(f64::INFINITY, f64::min) as usize;
-        let r1 = (p.iter().map(|q| q[1]).fold(0.0, f64::max) as usize).min(height - 1);
-        for r in r0..=r1 {
-            for c in c0..=c1 {
-                let (x, y) = (c as f64, r as f64);
-                let l1 = ((p[1][0] - x) * (p[2][1] - y) - (p[2][0] - x) * (p[1][1] - y)) / det;
-                let l2 = ((p[2][0] - x) * (p[0][1] - y) - (p[0][0] - x) * (p[2][1] - y)) / det;
-                let l3 = 1.0 - l1 - l2;
-                if l1 < -1e-12 || l2 < -1e-12 || l3 < -1e-12 || seen[r * width + c] {
-                    continue;
-                }
-                seen[r * width + c] = true;
-                if let Some(v) = at(c, r) {
-                    f(k, c, r, (l1 * h[0] + l2 * h[1] + l3 * h[2] - v).abs());
-                }
+        samples_in_triangle(p, (width, height), |c, r, l| {
+            if seen[r * width + c] {
+                return;
             }
-        }
+            seen[r * width + c] = true;
+            if let Some(v) = at(c, r) {
+                f(k, c, r, (l[0] * h[0] + l[1] * h[1] + l[2] * h[2] - v).abs());
+            }
+        });
     }
     Ok(())
 }
@@ -373,11 +344,7 @@ pub fn refine_to_bound(
     let mut added = 0;
     loop {
         let cells: Vec<(usize, usize)> = vertices.iter().map(|v| (v.col, v.row)).collect();
-        let id_of = quadtree::insertion_order(&cells);
-        let mut tri = Triangulation::default();
-        for &i in &id_of {
-            tri.insert_near([cells[i].0 as i64, cells[i].1 as i64], None)?;
-        }
+        let (tri, id_of) = delaunay(&cells)?;
         let mut next: std::collections::HashMap<Key, Worst> =
             std::collections::HashMap::with_capacity(cache.len() + 64);
         let mut worst: Vec<(f64, usize, usize)> = Vec::new();
@@ -428,6 +395,47 @@ pub fn refine_to_bound(
     }
 }
 
+/// The Delaunay triangulation of distinct `cells`, inserted in the canonical order of
+/// [`quadtree::insertion_order`] (the hull, then along a Hilbert curve: each point location
+/// starts next to the last, and Delaunay ties on the integer grid resolve the same way for
+/// the same set), and that order: triangulation vertex `k` is `cells[order[k]]`.
+pub(crate) fn delaunay(cells: &[(usize, usize)]) -> Result<(Triangulation, Vec<usize>)> {
+    let order = quadtree::insertion_order(cells);
+    let mut tri = Triangulation::default();
+    for &i in &order {
+        tri.insert_near([cells[i].0 as i64, cells[i].1 as i64], None)?;
+    }
+    Ok((tri, order))
+}
+
+/// Every sample (col, row) of a `width × height` grid inside the closed triangle `p` (sample
+/// coordinates), with its barycentric coordinates; nothing for a triangle of no area.
+fn samples_in_triangle(
+    p: [[f64; 2]; 3],
+    (width, height): (usize, usize),
+    mut f: impl FnMut(usize, usize, [f64; 3]),
+) {
+    let det = (p[1][0] - p[0][0]) * (p[2][1] - p[0][1]) - (p[2][0] - p[0][0]) * (p[1][1] - p[0][1]);
+    if det == 0.0 {
+        return;
+    }
+    let c0 = p.iter().map(|q| q[0]).fold(f64::INFINITY, f64::min) as usize;
+    let c1 = (p.iter().map(|q| q[0]).fold(0.0, f64::max) as usize).min(width - 1);
+    let r0 = p.iter().map(|q| q[1]).fold(f64::INFINITY, f64::min) as usize;
+    let r1 = (p.iter().map(|q| q[1]).fold(0.0, f64::max) as usize).min(height - 1);
+    for r in r0..=r1 {
+        for c in c0..=c1 {
+            let (x, y) = (c as f64, r as f64);
+            let l1 = ((p[1][0] - x) * (p[2][1] - y) - (p[2][0] - x) * (p[1][1] - y)) / det;
+            let l2 = ((p[2][0] - x) * (p[0][1] - y) - (p[0][0] - x) * (p[2][1] - y)) / det;
+            let l3 = 1.0 - l1 - l2;
+            if l1 >= -1e-12 && l2 >= -1e-12 && l3 >= -1e-12 {
+                f(c, r, [l1, l2, l3]);
+            }
+        }
+    }
+}
+
 /// A triangle's worst valid sample above `bound` (error, col, row), if any.
 fn triangle_worst(
     p: [[f64; 2]; 3],
@@ -436,34 +444,17 @@ fn triangle_worst(
     at: &dyn Fn(usize, usize) -> Option<f64>,
     bound: f64,
 ) -> Option<(f64, usize, usize)> {
-    let det = (p[1][0] - p[0][0]) * (p[2][1] - p[0][1]) - (p[2][0] - p[0][0]) * (p[1][1] - p[0][1]);
-    if det == 0.0 {
-        return None;
-    }
-    let c0 = p.iter().map(|q| q[0]).fold(f64::INFINITY, f64::min) as usize;
-    let c1 = (p.iter().map(|q| q[0]).fold(0.0, f64::max) as usize).min(width - 1);
-    let r0 = p.iter().map(|q| q[1]).fold(f64::INFINITY, f64::min) as usize;
-    let r1 = (p.iter().map(|q| q[1]).fold(0.0, f64::max) as usize).min(height - 1);
     let mut worst = None;
     let mut we = bound;
-    for r in r0..=r1 {
-        for c in c0..=c1 {
-            let (x, y) = (c as f64, r as f64);
-            let l1 = ((p[1][0] - x) * (p[2][1] - y) - (p[2][0] - x) * (p[1][1] - y)) / det;
-            let l2 = ((p[2][0] - x) * (p[0][1] - y) - (p[0][0] - x) * (p[2][1] - y)) / det;
-            let l3 = 1.0 - l1 - l2;
-            if l1 < -1e-12 || l2 < -1e-12 || l3 < -1e-12 {
-                continue;
-            }
-            if let Some(v) = at(c, r) {
-                let e = (l1 * h[0] + l2 * h[1] + l3 * h[2] - v).abs();
-                if e > we {
-                    we = e;
-                    worst = Some((e, c, r));
-                }
+    samples_in_triangle(p, (width, height), |c, r, l| {
+        if let Some(v) = at(c, r) {
+            let e = (l[0] * h[0] + l[1] * h[1] + l[2] * h[2] - v).abs();
+            if e > we {
+                we = e;
+                worst = Some((e, c, r));
             }
         }
-    }
+    });
     worst
 }
 
@@ -531,18 +522,22 @@ fn add_skirt(mesh: &mut Mesh, depth: f64) {
     }
 }
 
+/// The normal of triangle `[a, b, c]` (counter-clockwise), its length twice the area.
+pub(crate) fn face_normal([a, b, c]: [[f64; 3]; 3]) -> [f64; 3] {
+    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+    [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ]
+}
+
 /// Unit vertex normals: the area-weighted mean of the adjacent faces' normals.
 fn normals(mesh: &Mesh) -> Vec<[f32; 3]> {
     let mut acc = vec![[0.0f64; 3]; mesh.positions.len()];
     for t in &mesh.triangles {
-        let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
-        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let n = [
-            u[1] * v[2] - u[2] * v[1],
-            u[2] * v[0] - u[0] * v[2],
-            u[0] * v[1] - u[1] * v[0],
-        ];
+        let n = face_normal(t.map(|i| mesh.positions[i as usize]));
         for &i in t {
             for k in 0..3 {
                 acc[i as usize][k] += n[k];

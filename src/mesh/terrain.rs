@@ -8,7 +8,6 @@
 //! both tiles (bit-identical vertices, no cracks).
 
 use super::qmesh::{QuantizedTile, WaterMask};
-use super::quadtree::insertion_order;
 use crate::error::{Error, Result};
 use crate::geometry::triangulation::Triangulation;
 use std::collections::HashMap;
@@ -525,12 +524,8 @@ pub fn build_tile(
         }
     }
     let range = grid.samples_in(rect);
-    let mut tri = Triangulation::default();
     let cells: Vec<(usize, usize)> = verts.iter().map(|v| (v.u as usize, v.v as usize)).collect();
-    let first = insertion_order(&cells);
-    for &i in &first {
-        tri.insert_near([verts[i].u as i64, verts[i].v as i64], None)?;
-    }
+    let (mut tri, first) = super::delaunay(&cells)?;
     // The triangulation numbers vertices in insertion order: keep a map back.
     let mut id_of: Vec<u32> = first.iter().map(|&i| i as u32).collect();
     const MAX_ROUNDS: usize = 200;

@@ -165,14 +165,7 @@ fn check_counts(vertices: usize, triangles: usize) -> Result<()> {
 /// The unit normal of triangle `t` (counter-clockwise), computed in f64; zero for a triangle
 /// of no area.
 fn facet_normal(mesh: &Mesh, t: [u32; 3]) -> [f64; 3] {
-    let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
-    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-    let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-    let n = [
-        u[1] * v[2] - u[2] * v[1],
-        u[2] * v[0] - u[0] * v[2],
-        u[0] * v[1] - u[1] * v[0],
-    ];
+    let n = crate::mesh::face_normal(t.map(|i| mesh.positions[i as usize]));
     let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
     if l > 0.0 && l.is_finite() {
         n.map(|c| c / l)

@@ -74,14 +74,7 @@ fn mesh_of(
 
 /// The unit normal of triangle `t` of `positions` (f64), for checking winding after a round trip.
 pub fn normal_of(positions: &[[f64; 3]], t: [usize; 3]) -> [f64; 3] {
-    let [a, b, c] = t.map(|i| positions[i]);
-    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-    let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-    let n = [
-        u[1] * v[2] - u[2] * v[1],
-        u[2] * v[0] - u[0] * v[2],
-        u[0] * v[1] - u[1] * v[0],
-    ];
+    let n = crate::mesh::face_normal(t.map(|i| positions[i]));
     let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
     n.map(|c| c / l)
 }
