@@ -61,7 +61,8 @@ pub use methods::{
     StatValue, Stats,
 };
 pub use model::{
-    GeoKeys, Georef, InMemory, Raster, RasterType, RowSource, SampleType, ValueMapping, Window,
+    GeoKeys, Georef, InMemory, PointSet, Raster, RasterType, RowSource, SampleType, ValueMapping,
+    Window,
 };
 pub use quant::ErrorBound;
 

@@ -7,7 +7,9 @@ use std::str::FromStr;
 
 mod fill;
 pub(crate) mod flat;
+mod points;
 pub(crate) use fill::fill_invalid;
+pub use points::PointSet;
 
 /// The type the source stored its samples in. Values are held as `f64` in memory (exact for
 /// every type listed), and writers convert back to this type.
