@@ -45,6 +45,11 @@ mod testutil;
 
 pub use codec::Surface;
 pub use codec::mesh::{MeshRequest, Select, mesh_file, mesh_raster};
+pub use codec::points::{
+    ColumnReport, DecodePoints, PointHierarchy, PointsInfo, PointsOptions, PointsReport,
+    RasterizePoints, decode_points, encode_points, is_points_file, point_hierarchy, points_info,
+    rasterize_points,
+};
 pub use codec::terrain::{TerrainLevel, TerrainReport, TerrainRequest, write_terrain};
 pub use codec::{
     DEFAULT_TILE, DecodeOptions, Decoder, EncodeOptions, EncodeReport, Encoder, FileInfo, Sample,

@@ -6,6 +6,7 @@ mod decode;
 mod encode;
 pub mod mesh;
 mod options;
+pub mod points;
 mod rate;
 mod surface;
 pub mod terrain;

@@ -6,6 +6,7 @@ pub mod bytes;
 pub mod flat;
 pub mod header;
 pub mod mask;
+pub mod points;
 pub mod tiled;
 
 pub use header::Header;
@@ -151,7 +152,7 @@ pub fn write(header: &Header, sections: &[Section]) -> Vec<u8> {
     out
 }
 
-fn read_exact<R: Read>(r: &mut R, buf: &mut [u8], what: &str) -> Result<()> {
+pub(crate) fn read_exact<R: Read>(r: &mut R, buf: &mut [u8], what: &str) -> Result<()> {
     r.read_exact(buf).map_err(|e| {
         if e.kind() == std::io::ErrorKind::UnexpectedEof {
             Error::corrupt(format!("file is truncated in the {what}"))
@@ -367,7 +368,7 @@ impl<R: Read + Seek> ContainerReader<R> {
 
 /// Read a section directory at `dir_pos` (count, entries, checksum) whose payloads follow it
 /// back to back and end exactly at `end`. `what` prefixes errors (the tile, in a tiled file).
-fn read_directory<R: Read + Seek>(
+pub(crate) fn read_directory<R: Read + Seek>(
     inner: &mut R,
     dir_pos: u64,
     end: u64,

@@ -214,6 +214,17 @@ pub fn write_options(format: Option<Format>, force: bool, opts: &RasterOpts) -> 
     }
 }
 
+/// Whether a file starts like a `.vtz` point set (container version 3).
+pub fn is_points_file(path: &Path) -> Result<bool> {
+    use std::io::Read;
+    let mut head = [0u8; 10];
+    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path.display().to_string(), e))?;
+    let n = f
+        .read(&mut head)
+        .map_err(|e| Error::io(path.display().to_string(), e))?;
+    Ok(vtz::is_points_file(&head[..n]))
+}
+
 pub fn read_file(path: &Path) -> Result<Vec<u8>> {
     std::fs::read(path).map_err(|e| Error::io(path.display().to_string(), e))
 }

@@ -45,11 +45,39 @@ pub struct Args {
     /// Replace an existing output file.
     #[arg(short, long)]
     pub force: bool,
+    /// Point sets: write only the kept sites (importance order) with their stored values.
+    #[arg(long)]
+    pub sites_only: bool,
+    /// Point sets: rasterize Sibson's surface on cells of this size (CRS units, a multiple
+    /// of the file's position resolution) for raster output; nodata outside the points' hull.
+    #[arg(long, value_name = "C")]
+    pub cell: Option<f64>,
+    /// Point sets: the value column to rasterize (default: the first).
+    #[arg(long, value_name = "NAME")]
+    pub column: Option<String>,
+    /// Point sets with --cell: only cells at stored positions are valid (a raster encoded with
+    /// --band decodes back to its grid).
+    #[arg(long)]
+    pub only_positions: bool,
+    /// Point sets: the output's CRS, EPSG:n (replaces the file's).
+    #[arg(long, value_name = "EPSG:n")]
+    pub crs: Option<String>,
     #[command(flatten)]
     pub raster: RasterOpts,
 }
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
+    if common::is_points_file(&a.input)? {
+        common::check_output(&a.input, &a.output, a.force)?;
+        let bytes = common::read_file(&a.input)?;
+        return crate::points::decode(&a, &bytes, ui);
+    }
+    if a.sites_only || a.cell.is_some() || a.column.is_some() || a.only_positions || a.crs.is_some()
+    {
+        return Err(vtz::Error::invalid(
+            "--sites-only, --cell, --column, --only-positions and --crs are for point-set files",
+        ));
+    }
     // Everything that can fail before the decode does: options, the output's format, its
     // directory.
     let format = common::parse_format(a.format.as_deref())?;

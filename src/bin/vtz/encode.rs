@@ -7,7 +7,8 @@ use vtz::{EncodeOptions, ErrorBound, Result};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Input raster (.tif, .png, .exr, .hgt, .asc, .f32 + .json).
+    /// Input raster (.tif, .png, .exr, .hgt, .asc, .f32 + .json), or scattered points
+    /// (.xyz .txt .csv .las .laz) encoded as a point set.
     pub input: PathBuf,
     /// Output .vtz file (default: the input with extension .vtz).
     #[arg(short, long)]
@@ -70,11 +71,30 @@ pub struct Args {
     /// Threads for a tiled encode (default: all cores); the file is the same for any count.
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub threads: usize,
+    /// Point sets: the grid step positions snap to, in the CRS's units (default: the
+    /// coarsest power of ten the coordinates are multiples of, so positions are lossless).
+    #[arg(long, value_name = "R")]
+    pub xy_resolution: Option<f64>,
+    /// Point sets: the bound of one value column, NAME=E (repeatable; others take
+    /// --max-error).
+    #[arg(long, value_name = "NAME=E")]
+    pub max_error_band: Vec<String>,
+    /// LAS/LAZ input: keep only points of this classification (2 = ground).
+    #[arg(long, value_name = "C")]
+    pub class: Option<u8>,
+    /// Encode this raster with the input as one point set, one value column per raster
+    /// (same grid; repeatable): one site set, one bound per band (--max-error-band).
+    #[arg(long, value_name = "RASTER")]
+    pub band: Vec<PathBuf>,
     #[command(flatten)]
     pub raster: RasterOpts,
 }
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
+    crate::points::check_encode_options(&a)?;
+    if crate::points::is_points_input(&a) {
+        return crate::points::encode(&a, ui);
+    }
     let format = common::parse_format(a.format.as_deref())?;
     let bound = a.max_error.as_deref().map(ErrorBound::parse).transpose()?;
     let output = a

@@ -24,6 +24,7 @@ mod decode;
 mod encode;
 mod info;
 mod mesh;
+mod points;
 mod rd;
 mod render;
 mod sites;

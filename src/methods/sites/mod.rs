@@ -7,6 +7,8 @@
 //! a decoder will, checks the bound on every valid sample, and adds the violators as a last
 //! level until none is left (closed loop).
 
+pub(crate) mod points;
+pub(crate) mod scattered;
 pub(crate) mod select;
 
 use crate::container::Header;
@@ -73,7 +75,7 @@ pub struct DecodedSites {
 }
 
 /// Level sizes: the first holds the hull (at least 16 sites), then each doubles.
-fn level_sizes(total: usize, hull: usize) -> Vec<usize> {
+pub(super) fn level_sizes(total: usize, hull: usize) -> Vec<usize> {
     let mut sizes = Vec::new();
     let mut done = 0;
     let mut next = hull.max(16);

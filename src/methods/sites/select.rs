@@ -91,6 +91,13 @@ pub fn hull(s: &Samples) -> Vec<[i64; 2]> {
             }
         }
     }
+    convex_hull(cand)
+}
+
+/// Convex hull (counter-clockwise from the lowest-then-leftmost corner, no collinear points)
+/// of integer points; the two extreme points when they are all collinear, the points
+/// themselves when fewer than three are distinct.
+pub(crate) fn convex_hull(mut cand: Vec<[i64; 2]>) -> Vec<[i64; 2]> {
     cand.sort();
     cand.dedup();
     if cand.len() < 3 {
