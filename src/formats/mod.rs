@@ -14,6 +14,7 @@ pub(crate) mod hgt;
 mod output;
 mod pam;
 pub(crate) mod png;
+pub mod points;
 pub(crate) mod raw;
 mod samples;
 mod sidecar;
