@@ -117,13 +117,16 @@ pub fn is_points_file(bytes: &[u8]) -> bool {
 }
 
 /// The grid step: the given one (checked), else the coarsest power of ten (1 down to 10⁻⁶)
-/// every coordinate is a multiple of, else the finest that keeps the extent on the grid.
+/// every coordinate is a multiple of (within 10⁻⁶ of a step), else the finest that keeps
+/// the extent on the grid.
 /// Returns the step and whether every position is on the grid.
 fn choose_resolution(p: &PointSet, given: Option<f64>) -> Result<(f64, bool)> {
     let on_grid = |r: f64| {
         p.x.iter().chain(&p.y).all(|&v| {
             let q = v / r;
-            (q - q.round()).abs() <= 1e-4 && grid_coord(q.round() as i64, r) == v
+            // On the grid up to float noise: a LAS reader's `X·scale + offset` is not the
+            // double nearest the decimal, but within 10⁻⁶ of a step of it.
+            (q - q.round()).abs() <= 1e-6
         })
     };
     let [x0, y0, x1, y1] = p.bounds().unwrap_or([0.0; 4]);

@@ -3,7 +3,7 @@
 //! as version 1 (spec/FORMAT.md, "Version 3: point sets").
 
 use super::bytes::{ByteReader, PutLe};
-use super::{KindNames, Limits, MAGIC, Section, SectionEntry, SectionKind, read_directory};
+use super::{Limits, MAGIC, Section, SectionEntry, SectionKind, read_directory};
 use crate::error::{Error, Result};
 use std::io::Cursor;
 
@@ -219,9 +219,6 @@ fn names(k: SectionKind) -> Option<&'static str> {
         _ => None,
     }
 }
-
-/// The names of the point-set section types, for [`super::kind_name`].
-pub const POINT_NAMES: KindNames = names;
 
 impl<'a> PointsFile<'a> {
     /// Check the framing (magic, version, header checksum, directory) of a whole file.
