@@ -26,6 +26,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod cells;
 mod codec;
 mod container;
 mod entropy;
@@ -44,6 +45,7 @@ pub mod viz;
 mod testutil;
 
 pub use codec::Surface;
+pub use codec::cells::{CellsRequest, FileCells, file_cells};
 pub use codec::mesh::{MeshRequest, Select, mesh_file, mesh_raster};
 pub use codec::points::{
     ColumnReport, DecodePoints, PointHierarchy, PointsInfo, PointsOptions, PointsReport,

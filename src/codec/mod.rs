@@ -2,6 +2,7 @@
 //! encoding a raster into `.vtz` bytes and decoding them back; the public API re-exports
 //! what is here.
 
+pub mod cells;
 mod decode;
 mod encode;
 pub mod mesh;

@@ -458,7 +458,7 @@ fn diverging(t: f64) -> [u8; 3] {
 }
 
 /// A short label for a number: up to 4 significant digits, scientific when tiny or huge.
-fn fmt_num(v: f64) -> String {
+pub(super) fn fmt_num(v: f64) -> String {
     let a = v.abs();
     if a == 0.0 {
         return "0".into();
@@ -499,12 +499,12 @@ fn glyph(c: char) -> [u8; 5] {
 }
 
 /// Width in pixels of `text` drawn at glyph scale `g` (glyphs 3 wide, 1 apart).
-fn text_width(text: &str, g: u32) -> u32 {
+pub(super) fn text_width(text: &str, g: u32) -> u32 {
     let n = text.chars().count() as u32;
     (n * 4).saturating_sub(1) * g
 }
 
-fn draw_text(img: &mut RgbImage, x0: u32, y0: u32, text: &str, g: u32, colour: [u8; 3]) {
+pub(super) fn draw_text(img: &mut RgbImage, x0: u32, y0: u32, text: &str, g: u32, colour: [u8; 3]) {
     for (k, ch) in text.chars().enumerate() {
         let gx = x0 + k as u32 * 4 * g;
         for (row, bits) in glyph(ch).iter().enumerate() {

@@ -17,6 +17,7 @@ macro_rules! out {
     };
 }
 
+mod cells;
 mod common;
 mod compare;
 mod convert;
@@ -59,6 +60,9 @@ enum Cmd {
     Convert(convert::Args),
     /// List a .vtz file's sites (importance rank, level, position, height) as CSV.
     Sites(sites::Args),
+    /// One level's Voronoi cells of a .vtz's sites with their residual (eps_max, eps_rms):
+    /// GeoJSON polygons or a PNG picture.
+    Cells(cells::Args),
     /// A raster or .vtz as a triangle mesh: OBJ, PLY, STL or binary glTF (.glb).
     Mesh(mesh::Args),
     /// A geographic raster or .vtz as Cesium terrain tiles (quantized-mesh-1.0, layer.json).
@@ -82,6 +86,7 @@ fn main() -> ExitCode {
         Cmd::Compare(a) => compare::run(a, &ui),
         Cmd::Convert(a) => convert::run(a, &ui),
         Cmd::Sites(a) => sites::run(a, &ui),
+        Cmd::Cells(a) => cells::run(a, &ui),
         Cmd::Mesh(a) => mesh::run(a, &ui),
         Cmd::Tiles(a) => tiles::run(a, &ui),
         Cmd::Render(a) => render::run(a, &ui),
