@@ -263,8 +263,7 @@ pub(super) fn encode(
     let enc = |e: ::las::Error| Error::invalid(format!("LAS encoding: {e}"));
     let mut writer = ::las::Writer::new(std::io::Cursor::new(Vec::new()), header).map_err(enc)?;
     let (mut dxy, mut dz) = (0.0f64, 0.0f64);
-    for i in 0..ps.len() {
-        let (x, y, zi) = (ps.x[i], ps.y[i], z[i]);
+    for ((&x, &y), &zi) in ps.x.iter().zip(&ps.y).zip(z) {
         let stored = |t: &::las::Transform, v: f64| t.inverse(v).map(|n| t.direct(n));
         let (sx, sy, sz) = (
             stored(&transforms.x, x).map_err(enc)?,
