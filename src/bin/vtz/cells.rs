@@ -60,6 +60,14 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         None => None,
     };
     let bytes = common::read_file(&a.input)?;
+    if vtz::is_points_file(&bytes) {
+        if matches!(kind, Kind::Png) || a.source.is_some() {
+            return Err(Error::invalid(
+                "a point set's cells are written as GeoJSON, measured against its own decode (no .png, no --source)",
+            ));
+        }
+        return points_cells(&a, &bytes, start, ui);
+    }
     let req = CellsRequest {
         level: a.level,
         source: source.as_ref(),
@@ -110,6 +118,72 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
                 "decode"
             },
             secs
+        ));
+    }
+    Ok(())
+}
+
+/// The cells of a point set: the sites of levels 0..=K, ε over the decoded points (column 0).
+fn points_cells(a: &Args, bytes: &[u8], start: Instant, ui: &Ui) -> Result<()> {
+    let ctx = |e: Error| e.context(a.input.display());
+    let h = ui
+        .busy("decoding", || {
+            vtz::point_hierarchy(bytes, a.level.map(|k| k + 1), Limits::default())
+        })
+        .map_err(ctx)?;
+    let level = h.site_level.last().copied().unwrap_or(0);
+    if a.level.is_some_and(|k| k >= h.levels) {
+        return Err(Error::invalid(format!(
+            "--level {} is past the file's last level {}",
+            a.level.unwrap_or(0),
+            h.levels.saturating_sub(1)
+        )));
+    }
+    let pts: Vec<[f64; 2]> = h.samples.iter().map(|s| s.0).collect();
+    let hull = vtz::cells::convex_hull(&pts);
+    let cells = ui
+        .busy("measuring cells", || {
+            vtz::cells::voronoi_cells(&h.sites, h.samples.iter().copied(), &hull)
+        })
+        .map_err(ctx)?;
+    let infos: Vec<vtz::cells::SiteInfo> = (0..h.sites.len())
+        .map(|i| vtz::cells::SiteInfo {
+            rank: i,
+            level: h.site_level[i],
+            value: h.site_value[i],
+        })
+        .collect();
+    let mut about = serde_json::Map::new();
+    about.insert("level".into(), level.into());
+    about.insert("levels".into(), h.levels.into());
+    about.insert("reference".into(), "decode".into());
+    about.insert(
+        "note".into(),
+        "eps is measured against the file's full decode at every point; the error to the original points is at most eps + the file's bound"
+            .into(),
+    );
+    let opts = vtz::cells::GeoJsonOptions {
+        epsg: h.epsg,
+        about,
+    };
+    let out = vtz::cells::geojson(&cells, &infos, &opts)?;
+    vtz::formats::write_file(&a.output, out, a.force)?;
+    let n = cells.iter().filter(|c| c.polygon.len() >= 3).count();
+    let worst = cells.iter().map(|c| c.eps_max).fold(0.0, f64::max);
+    let secs = start.elapsed().as_secs_f64();
+    if a.json {
+        let v = serde_json::json!({
+            "output": a.output.display().to_string(), "cells": n, "level": level,
+            "levels": h.levels, "sites": h.sites.len(), "samples": h.samples.len(),
+            "reference": "decode", "eps_max": worst, "seconds": secs,
+        });
+        outln!("{v}");
+    } else {
+        ui.say(format!(
+            "{}: {n} cells of level {level} ({} sites), eps_max {} against the decode, {secs:.2} s",
+            a.output.display(),
+            h.sites.len(),
+            vtz::metrics::num(worst),
         ));
     }
     Ok(())
