@@ -32,6 +32,7 @@ mod entropy;
 mod error;
 pub mod formats;
 mod geometry;
+pub mod lsystem;
 mod mesh;
 mod methods;
 pub mod metrics;
