@@ -23,6 +23,7 @@ mod convert;
 mod decode;
 mod encode;
 mod info;
+mod lsystem;
 mod mesh;
 mod rd;
 mod render;
@@ -60,6 +61,8 @@ enum Cmd {
     Sites(sites::Args),
     /// A raster or .vtz as a triangle mesh: OBJ, PLY, STL or binary glTF (.glb).
     Mesh(mesh::Args),
+    /// A 3D L-system's tips as points (.xyz) or a triangulated cover (.obj, .ply, .stl, .glb).
+    Lsystem(lsystem::Args),
     /// A geographic raster or .vtz as Cesium terrain tiles (quantized-mesh-1.0, layer.json).
     Tiles(tiles::Args),
     /// Draw a raster or .vtz as a shaded relief PNG (optionally with its sites).
@@ -82,6 +85,7 @@ fn main() -> ExitCode {
         Cmd::Convert(a) => convert::run(a, &ui),
         Cmd::Sites(a) => sites::run(a, &ui),
         Cmd::Mesh(a) => mesh::run(a, &ui),
+        Cmd::Lsystem(a) => lsystem::run(a, &ui),
         Cmd::Tiles(a) => tiles::run(a, &ui),
         Cmd::Render(a) => render::run(a, &ui),
         Cmd::Rd(a) => rd::run(a, &ui),
