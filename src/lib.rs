@@ -33,6 +33,7 @@ mod entropy;
 mod error;
 pub mod formats;
 mod geometry;
+pub mod lsystem;
 mod mesh;
 mod methods;
 pub mod metrics;

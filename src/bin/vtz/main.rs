@@ -24,6 +24,7 @@ mod convert;
 mod decode;
 mod encode;
 mod info;
+mod lsystem;
 mod mesh;
 mod points;
 mod rd;
@@ -65,6 +66,8 @@ enum Cmd {
     Cells(cells::Args),
     /// A raster or .vtz as a triangle mesh: OBJ, PLY, STL or binary glTF (.glb).
     Mesh(mesh::Args),
+    /// A 3D L-system's tips as points (.xyz) or a triangulated cover (.obj, .ply, .stl, .glb).
+    Lsystem(lsystem::Args),
     /// A geographic raster or .vtz as Cesium terrain tiles (quantized-mesh-1.0, layer.json).
     Tiles(tiles::Args),
     /// Draw a raster or .vtz as a shaded relief PNG (optionally with its sites).
@@ -88,6 +91,7 @@ fn main() -> ExitCode {
         Cmd::Sites(a) => sites::run(a, &ui),
         Cmd::Cells(a) => cells::run(a, &ui),
         Cmd::Mesh(a) => mesh::run(a, &ui),
+        Cmd::Lsystem(a) => lsystem::run(a, &ui),
         Cmd::Tiles(a) => tiles::run(a, &ui),
         Cmd::Render(a) => render::run(a, &ui),
         Cmd::Rd(a) => rd::run(a, &ui),
