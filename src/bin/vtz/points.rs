@@ -184,9 +184,6 @@ pub fn encode(a: &encode::Args, ui: &Ui) -> Result<()> {
         }
         bands_as_points(a, ui)?
     };
-    if a.max_error.is_none() {
-        ui.say("note: no --max-error given: 1% of each column's value range");
-    }
     let mut o = PointsOptions::new(bound);
     o.resolution = a.xy_resolution;
     o.bounds = bands;
@@ -194,6 +191,9 @@ pub fn encode(a: &encode::Args, ui: &Ui) -> Result<()> {
         vtz::encode_points(&points, &o, &mut |f| p(f))
     })?;
     vtz::formats::write_file(&output, bytes, a.force)?;
+    if a.max_error.is_none() {
+        ui.say("note: no --max-error given: 1% of each column's value range");
+    }
     if !rep.positions_lossless {
         ui.say(format!(
             "note: positions rounded to the nearest {} (--xy-resolution); the bound holds at the rounded positions",
