@@ -4,6 +4,9 @@
 //! columns with their own bounds), by the library (property tests) and through the CLI
 //! (bad rows, raster output with a CRS, several rasters as one point set, cells).
 
+// Columns and group members index several parallel arrays at once.
+#![allow(clippy::needless_range_loop)]
+
 mod common;
 
 use common::{ok, stderr, tmp, vtz};

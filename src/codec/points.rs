@@ -9,6 +9,8 @@
 //! positions are range coded (`methods::sites::points`). The encoder then decodes its bytes
 //! exactly as a decoder does, measures every point and column, and adds the violators as a
 //! last level until none is left (closed loop).
+// Columns index several parallel arrays (values, bounds, lattices, surfaces) at once.
+#![allow(clippy::needless_range_loop)]
 
 use crate::container::points::{
     ColumnHeader, MAX_EXTENT, POINT_SITES, POSITIONS, PointsFile, PointsHeader, VERSION_POINTS,

@@ -6,6 +6,8 @@
 //! The Sibson surface over the sites is one per value column (all on the same positions);
 //! the decoder evaluates each at every position (spatial order, on all cores: the value is a
 //! pure function of the sites and the position, see `geometry::sibson`).
+// Columns index several parallel arrays (values, bounds, lattices, surfaces) at once.
+#![allow(clippy::needless_range_loop)]
 
 use super::level_sizes;
 use crate::container::bytes::{ByteReader, PutLe};

@@ -8,6 +8,8 @@
 //! circumdisks of the new Delaunay triangles can change (Sibson's interpolant is local), so
 //! only they are marked stale; buckets keep their maxima in a max-heap with lazy
 //! invalidation, and stale errors are recomputed when their bucket reaches the top.
+// Columns index several parallel arrays (values, bounds, lattices, surfaces) at once.
+#![allow(clippy::needless_range_loop)]
 
 use crate::error::{Error, Result};
 use crate::geometry::sibson::{Scratch, Surface};
@@ -373,8 +375,7 @@ pub fn select_scattered(
     st.flush()?;
     let first = st.worst()?.map_or(1.0, |w| w.0).max(1.0 + 1e-9);
     let mut last_report = 0;
-    loop {
-        let Some((e, k)) = st.worst()? else { break };
+    while let Some((e, k)) = st.worst()? {
         if e <= 1.0 {
             st.flush()?;
             match st.worst()? {
