@@ -86,6 +86,10 @@ pub struct Args {
     /// (same grid; repeatable): one site set, one bound per band (--max-error-band).
     #[arg(long, value_name = "RASTER")]
     pub band: Vec<PathBuf>,
+    /// Point sets: the positions' CRS, EPSG:n (for inputs that do not carry one, or to
+    /// replace it).
+    #[arg(long, value_name = "EPSG:n")]
+    pub crs: Option<String>,
     #[command(flatten)]
     pub raster: RasterOpts,
 }

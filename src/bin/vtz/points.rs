@@ -39,6 +39,7 @@ pub fn check_encode_options(a: &encode::Args) -> Result<()> {
             (a.xy_resolution.is_some(), "--xy-resolution"),
             (!a.max_error_band.is_empty(), "--max-error-band"),
             (a.class.is_some(), "--class"),
+            (a.crs.is_some(), "--crs"),
         ] {
             if set {
                 return Err(Error::invalid(format!(
@@ -159,6 +160,7 @@ pub fn encode(a: &encode::Args, ui: &Ui) -> Result<()> {
         .transpose()?
         .unwrap_or(ErrorBound::PercentOfRange(1.0));
     let bands = band_bounds(a)?;
+    let crs = a.crs.as_deref().map(parse_crs).transpose()?;
     if let Some(r) = a.xy_resolution.filter(|r| !(*r > 0.0 && r.is_finite())) {
         return Err(Error::invalid(format!(
             "--xy-resolution {r} must be positive"
@@ -169,7 +171,7 @@ pub fn encode(a: &encode::Args, ui: &Ui) -> Result<()> {
         .clone()
         .unwrap_or_else(|| common::default_output(&a.input, "vtz"));
     common::check_output(&a.input, &output, a.force)?;
-    let points = if a.band.is_empty() {
+    let mut points = if a.band.is_empty() {
         let ro = ReadPointsOptions {
             class: a.class,
             ..Default::default()
@@ -182,6 +184,10 @@ pub fn encode(a: &encode::Args, ui: &Ui) -> Result<()> {
         }
         bands_as_points(a, ui)?
     };
+    if let Some(n) = crs {
+        points.epsg = Some(n);
+        points.wkt = None;
+    }
     let mut o = PointsOptions::new(bound);
     o.resolution = a.xy_resolution;
     o.bounds = bands;
@@ -318,18 +324,22 @@ pub fn decode(a: &decode::Args, bytes: &[u8], ui: &Ui) -> Result<()> {
 
 /// `--crs EPSG:n` (or `n`): set the output's CRS (replacing the file's).
 fn apply_crs(epsg: &mut Option<u32>, wkt: &mut Option<String>, crs: Option<&str>) -> Result<()> {
-    let Some(s) = crs else { return Ok(()) };
+    if let Some(s) = crs {
+        *epsg = Some(parse_crs(s)?);
+        *wkt = None;
+    }
+    Ok(())
+}
+
+/// `EPSG:n` or `n`.
+fn parse_crs(s: &str) -> Result<u32> {
     let t = s.trim();
     let code = t
         .strip_prefix("EPSG:")
         .or_else(|| t.strip_prefix("epsg:"))
         .unwrap_or(t);
-    let n: u32 = code
-        .parse()
-        .map_err(|_| Error::invalid(format!("--crs '{s}' is not EPSG:n")))?;
-    *epsg = Some(n);
-    *wkt = None;
-    Ok(())
+    code.parse()
+        .map_err(|_| Error::invalid(format!("--crs '{s}' is not EPSG:n")))
 }
 
 /// `vtz info` of a point-set file.
