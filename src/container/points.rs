@@ -95,7 +95,7 @@ impl PointsHeader {
         let resolution = r.finite_f64("resolution")?;
         let origin = [r.u64("origin x")? as i64, r.u64("origin y")? as i64];
         let extent = [r.u32("extent x")?, r.u32("extent y")?];
-        if !(resolution > 0.0) {
+        if resolution <= 0.0 {
             return Err(r.corrupt("resolution is not positive"));
         }
         for o in origin {
@@ -134,7 +134,7 @@ impl PointsHeader {
             let bound = r.finite_f64("column bound")?;
             let max_error = r.finite_f64("column max error")?;
             let rmse = r.finite_f64("column rmse")?;
-            if !(step > 0.0) || bound < 0.0 || max_error < 0.0 || rmse < 0.0 {
+            if step <= 0.0 || bound < 0.0 || max_error < 0.0 || rmse < 0.0 {
                 return Err(r.corrupt("column lattice or errors out of range"));
             }
             columns.push(ColumnHeader {

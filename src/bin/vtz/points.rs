@@ -59,8 +59,10 @@ fn bands_as_points(a: &encode::Args, ui: &Ui) -> Result<PointSet> {
     let format = common::parse_format(a.format.as_deref())?;
     let mut rasters = Vec::new();
     for f in &files {
-        let mut ro = vtz::formats::ReadOptions::default();
-        ro.format = format;
+        let ro = vtz::formats::ReadOptions {
+            format,
+            ..Default::default()
+        };
         let r = vtz::read_path(f, &ro).map_err(|e| e.context(f.display()))?;
         rasters.push(r);
     }

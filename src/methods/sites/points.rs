@@ -234,6 +234,7 @@ pub fn write_sites(
         for (k, codes) in level {
             gaps.encode(&mut enc, prev.map_or(*k, |q| k - q - 1) as u64);
             let p = to_i64(pos[*k as usize]);
+            #[allow(clippy::needless_range_loop)] // c indexes the models and the codes
             for c in 0..t {
                 let pred = st.predict(p, c, lat);
                 st.models[c].encode(&mut enc, codes[c] - pred);
@@ -354,6 +355,7 @@ pub fn read_sites(
             }
             is_site[k as usize] = true;
             let p = to_i64(pos[k as usize]);
+            #[allow(clippy::needless_range_loop)] // c indexes the models and the codes
             for c in 0..t {
                 let pred = st.predict(p, c, lat);
                 codes[c] = pred

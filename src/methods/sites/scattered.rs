@@ -142,6 +142,7 @@ impl State<'_> {
     fn eval(&mut self, k: usize, hints: &mut [Option<u32>]) -> Result<f64> {
         let p = self.c.pos[k];
         let mut e: f64 = 0.0;
+        #[allow(clippy::needless_range_loop)] // c indexes surfaces, hints, values, bounds
         for c in 0..self.cols() {
             let v = self.surfs[c]
                 .eval_seq(p, &mut hints[c], &mut self.scratch)
@@ -287,6 +288,7 @@ impl State<'_> {
     fn insert(&mut self, k: usize, codes: &mut [Vec<i64>], p: &ScatterParams) -> Result<()> {
         let b = self.b.of(self.c.pos[k]);
         let t = self.cols();
+        #[allow(clippy::needless_range_loop)] // c indexes values, steps, surfaces, codes
         for c in 0..t {
             let code = code_of(self.c.values[c][k], p.steps[c], p.offsets[c]);
             let hint = Some(self.hints[b * t + c]).filter(|&h| h != u32::MAX);
@@ -373,8 +375,7 @@ pub fn select_scattered(
     st.flush()?;
     let first = st.worst()?.map_or(1.0, |w| w.0).max(1.0 + 1e-9);
     let mut last_report = 0;
-    loop {
-        let Some((e, k)) = st.worst()? else { break };
+    while let Some((e, k)) = st.worst()? {
         if e <= 1.0 {
             st.flush()?;
             match st.worst()? {
