@@ -9,7 +9,7 @@ import os, random, struct, subprocess, sys, tempfile, glob
 root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 vtz = sys.argv[1] if len(sys.argv) > 1 else os.path.join(root, "target/release/vtz")
 out = os.path.join(root, "fuzz/corpus")
-for t in ("container", "sections", "readers", "roundtrip"):
+for t in ("container", "sections", "readers", "roundtrip", "points"):
     os.makedirs(os.path.join(out, t), exist_ok=True)
 
 def put(target, name, data):
@@ -43,7 +43,9 @@ METHOD_INDEX = {3: 0, 2: 1, 5: 2, 4: 3, 6: 4}  # section code → registry index
 TYPE_CODE = {"u8": 0, "i16": 1, "u16": 2, "i32": 3, "f32": 4, "f64": 5}
 
 with tempfile.TemporaryDirectory() as tmp:
-    vtzs = sorted(glob.glob(os.path.join(root, "tests/golden/*.vtz")))
+    # Raster golden files (versions 1 and 2); the point sets (v3_*) seed the points target.
+    vtzs = sorted(p for p in glob.glob(os.path.join(root, "tests/golden/*.vtz"))
+                  if not os.path.basename(p).startswith("v3_"))
     # Small files of every method, with and without a mask, from corpus crops.
     srcs = [("kauai", "corpus/srtm3_N22W160_kauai.hgt", "600,500,40,33", "i16"),
             ("bijou", "corpus/nasadem_west_bijou_escarpment_landlab.asc", "10,10,31,17", "f32"),
@@ -103,6 +105,43 @@ with tempfile.TemporaryDirectory() as tmp:
                 body += struct.pack("<H", len(flat[0][2])) + flat[0][2]
             seed = head + bytes([flags]) + struct.pack("<HHB", w - 1, h - 1, st) + body + payload
             put("sections", f"{os.path.basename(p)}.{kind}", seed)
+    # Point sets (container version 3) from small synthetic XYZ files: scattered points,
+    # points sharing positions with other values, collinear points, two value columns.
+    prng = random.Random(3)
+    def xyz(name, rows, header=None):
+        path = os.path.join(tmp, name + ".xyz")
+        with open(path, "w") as f:
+            if header:
+                f.write(header + "\n")
+            for r in rows:
+                f.write(" ".join(repr(v) for v in r) + "\n")
+        return path
+    scattered = [(prng.randrange(400) / 10, prng.randrange(300) / 10,
+                  round(50 + prng.uniform(-5, 5), 2)) for _ in range(120)]
+    dups = scattered[:60] + [(x, y, round(z + prng.uniform(-2, 2), 2)) for x, y, z in scattered[:30]]
+    line = [(i * 0.5, i * 0.25, round(10 + i * 0.1 + prng.uniform(-1, 1), 2)) for i in range(40)]
+    line_dups = line + line[:5]
+    two = [(x, y, z, prng.randrange(256)) for x, y, z in scattered[:80]]
+    tiny = [(0.0, 0.0, 1.0), (1.0, 0.0, 2.0), (0.0, 1.0, 3.0)]
+    for name, rows, header, extra in (("scattered", scattered, None, ["--max-error", "0.5"]),
+                                      ("scattered_tight", scattered, None, ["--max-error", "0.01"]),
+                                      ("dups", dups, None, ["--max-error", "0.2"]),
+                                      ("collinear", line, None, ["--max-error", "0.3"]),
+                                      ("collinear_dups", line_dups, None, ["--max-error", "0.3"]),
+                                      ("two_columns", two, "x y z intensity",
+                                       ["--max-error", "0.5", "--max-error-band", "intensity=3"]),
+                                      ("tiny", tiny, None, ["--max-error", "0.1"]),
+                                      ("single", tiny[:1], None, ["--max-error", "0.1"])):
+        src = xyz(name, rows, header)
+        p = os.path.join(tmp, f"points_{name}.vtz")
+        try:
+            run("encode", src, "-o", p, "--force", "-q", *extra)
+        except subprocess.CalledProcessError:
+            print("no point-set seed", name, file=sys.stderr)
+            continue
+        put("points", name + ".vtz", open(p, "rb").read())
+    for p in glob.glob(os.path.join(root, "tests/golden/v3_*.vtz")):
+        put("points", os.path.basename(p), open(p, "rb").read())
     rng = random.Random(1)
     for i in range(16):
         n = rng.randrange(6, 400)

@@ -374,3 +374,168 @@ fn the_tiled_golden_file_decodes_to_its_expected_samples() {
         .verify()
         .unwrap();
 }
+
+/// The source of the point-set golden file: 300 points on a 0.01 m grid (coordinates
+/// `k / 100`, so the positions are lossless) in UTM 4N, with two columns — `z`, a smooth
+/// surface with noise, and `intensity`, integers — and 24 points repeating an earlier
+/// point's position with other values (shared positions). A fixed LCG makes it the same on
+/// every machine.
+fn points_source() -> vtz::PointSet {
+    let mut s = 0x2545_f491_4f6c_dd1du64;
+    let mut next = move |n: u64| {
+        s = s
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (s >> 33) % n
+    };
+    let (mut x, mut y, mut z, mut it): (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for i in 0..300 {
+        let (kx, ky) = if i >= 276 {
+            // A shared position: an earlier point's, other values.
+            let j = next(276) as usize;
+            (
+                (x[j] * 100.0f64).round() as i64,
+                (y[j] * 100.0f64).round() as i64,
+            )
+        } else {
+            (
+                45_000_000 + next(4000) as i64,
+                244_000_000 + next(3000) as i64,
+            )
+        };
+        let (xf, yf) = (kx as f64 / 100.0, ky as f64 / 100.0);
+        let smooth = 100.0 + 5.0 * (xf / 7.0).sin() + 3.0 * (yf / 5.0).cos();
+        x.push(xf);
+        y.push(yf);
+        z.push(((smooth + next(100) as f64 / 200.0) * 1000.0).round() / 1000.0);
+        it.push(next(256) as f64);
+    }
+    vtz::PointSet {
+        x,
+        y,
+        names: vec!["z".into(), "intensity".into()],
+        values: vec![z, it],
+        epsg: Some(32604),
+        wkt: None,
+    }
+}
+
+fn points_encode() -> Vec<u8> {
+    let o = vtz::PointsOptions::new(ErrorBound::Abs(0.1))
+        .column_bound("intensity", ErrorBound::Abs(2.0));
+    vtz::encode_points(&points_source(), &o, &mut |_| {})
+        .unwrap()
+        .0
+}
+
+/// `x,y,z,intensity` per decoded point, each value as Rust prints an f64 (shortest text that
+/// reads back to the same bits).
+fn points_csv(p: &vtz::PointSet) -> String {
+    let mut s = format!("x,y,{}\n", p.names.join(","));
+    for i in 0..p.len() {
+        s += &format!("{},{}", p.x[i], p.y[i]);
+        for c in &p.values {
+            s += &format!(",{}", c[i]);
+        }
+        s += "\n";
+    }
+    s
+}
+
+#[test]
+fn the_point_set_golden_file_decodes_to_its_expected_points() {
+    let name = "v3_points";
+    let vtz_path = dir().join(format!("{name}.vtz"));
+    let exp_path = dir().join(format!("{name}.expected.csv"));
+    if !vtz_path.exists() {
+        assert!(
+            std::env::var_os("VTZ_BLESS_GOLDEN").is_some(),
+            "{} is missing (VTZ_BLESS_GOLDEN=1 writes it)",
+            vtz_path.display()
+        );
+        let bytes = points_encode();
+        let p = vtz::decode_points(&bytes, &vtz::DecodePoints::new()).unwrap();
+        std::fs::write(&vtz_path, &bytes).unwrap();
+        std::fs::write(&exp_path, points_csv(&p)).unwrap();
+    }
+    let bytes = std::fs::read(&vtz_path).unwrap();
+    assert!(bytes.len() < 8192, "the golden file stays small");
+    assert_eq!(
+        u16::from_le_bytes([bytes[8], bytes[9]]),
+        3,
+        "a version-3 file"
+    );
+    // (a) The decode, bit for bit.
+    let p = vtz::decode_points(&bytes, &vtz::DecodePoints::new())
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert_eq!(p.len(), 300);
+    assert_eq!(p.names, ["z", "intensity"]);
+    assert_eq!(p.epsg, Some(32604));
+    let expected = std::fs::read_to_string(&exp_path).unwrap();
+    let got = points_csv(&p);
+    for (i, (g, e)) in got.lines().zip(expected.lines()).enumerate() {
+        assert_eq!(
+            g,
+            e,
+            "{name}: line {} differs from {}",
+            i + 1,
+            exp_path.display()
+        );
+    }
+    assert_eq!(got.lines().count(), expected.lines().count());
+    // The decode holds the bounds at every source point (matched by position and value:
+    // the decode is in position order, not input order).
+    let src = points_source();
+    let info = vtz::points_info(&bytes, Default::default()).unwrap();
+    assert!(info.columns[0].max_error <= 0.1 && info.columns[1].max_error <= 2.0);
+    assert!(info.levels.len() > 1, "several levels");
+    let mut sv: Vec<(i64, i64)> = (0..src.len())
+        .map(|i| {
+            (
+                (src.x[i] * 100.0).round() as i64,
+                (src.y[i] * 100.0).round() as i64,
+            )
+        })
+        .collect();
+    let mut dv: Vec<(i64, i64)> = (0..p.len())
+        .map(|i| {
+            (
+                (p.x[i] * 100.0).round() as i64,
+                (p.y[i] * 100.0).round() as i64,
+            )
+        })
+        .collect();
+    sv.sort_unstable();
+    dv.sort_unstable();
+    assert_eq!(sv, dv, "the same positions, with their multiplicities");
+    assert!(sv.windows(2).any(|w| w[0] == w[1]), "some shared positions");
+    // (b) The encoder still writes these bytes: any change of the format shows here.
+    assert!(
+        points_encode() == bytes,
+        "{name}: re-encoding the source gives other bytes"
+    );
+    // (c) Every proper prefix is rejected.
+    for n in 0..bytes.len() {
+        assert!(
+            vtz::decode_points(&bytes[..n], &vtz::DecodePoints::new()).is_err(),
+            "{name}: prefix of {n} bytes decoded"
+        );
+    }
+    // (d) A flipped byte in the header or in either section fails its checksum. The
+    // sections are the file's last bytes, positions then point-sites.
+    assert_eq!(info.sections.len(), 2);
+    let mut at = bytes.len() - info.sections.iter().map(|s| s.1 as usize).sum::<usize>();
+    let mut offsets = vec![20];
+    for (_, len) in &info.sections {
+        offsets.extend([at, at + *len as usize / 2, at + *len as usize - 1]);
+        at += *len as usize;
+    }
+    for o in offsets {
+        let mut b = bytes.clone();
+        b[o] ^= 0x10;
+        let e = vtz::decode_points(&b, &vtz::DecodePoints::new())
+            .expect_err(&format!("{name}: byte {o} flipped decoded"));
+        assert!(e.to_string().contains("checksum"), "{name}: byte {o}: {e}");
+    }
+}

@@ -112,14 +112,16 @@ impl PointsHeader {
         if positions > extent[0] as u64 * extent[1] as u64 {
             return Err(r.corrupt("more positions than the grid holds"));
         }
-        if points > limits.max_samples {
-            return Err(Error::limit(format!(
-                "point set of {points} points is over the limit of {}",
-                limits.max_samples
-            )));
-        }
         if ncol == 0 || ncol > MAX_COLUMNS {
             return Err(r.corrupt(format!("column count {ncol} is out of range")));
+        }
+        // The decoder holds a value per point and column (and a surface per column over
+        // the sites): the sample limit bounds points × columns.
+        if points.saturating_mul(ncol as u64) > limits.max_samples {
+            return Err(Error::limit(format!(
+                "point set of {points} points × {ncol} columns is over the limit of {} values",
+                limits.max_samples
+            )));
         }
         let mut columns = Vec::with_capacity(ncol);
         for _ in 0..ncol {

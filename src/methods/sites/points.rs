@@ -129,6 +129,9 @@ pub fn read_positions(
             return Err(Error::corrupt("positions section: position outside the extent"));
         }
         let m = reps.decode(&mut dec)?;
+        if m >= u32::MAX as u64 {
+            return Err(Error::corrupt("positions section: a multiplicity over 2^32 − 1"));
+        }
         total = total
             .checked_add(m + 1)
             .filter(|&t| t <= points)
