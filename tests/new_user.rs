@@ -434,7 +434,7 @@ fn item10_a_missing_output_directory_fails_before_encoding() {
     assert!(stderr(&o).contains("unknown method"), "{}", stderr(&o));
     // An output whose format cannot be told is refused before the input is read.
     for cmd in ["decode", "convert"] {
-        let out = tmp(&d, "out.xyz");
+        let out = tmp(&d, "out.xyzw");
         let o = if cmd == "decode" {
             vtz([cmd, "no-such-input.vtz", "-o", &out])
         } else {
