@@ -118,7 +118,7 @@ pub fn is_points_file(bytes: &[u8]) -> bool {
         && u16::from_le_bytes([bytes[8], bytes[9]]) == VERSION_POINTS
 }
 
-/// The grid step: the given one (checked), else the coarsest power of ten (1 down to 10⁻⁶)
+/// The grid step: the given one (checked), else the coarsest power of ten (1 down to 10⁻⁹)
 /// every coordinate is a multiple of (within 10⁻⁶ of a step), else the finest that keeps
 /// the extent on the grid.
 /// Returns the step and whether every position is on the grid.
@@ -147,7 +147,7 @@ fn choose_resolution(p: &PointSet, given: Option<f64>) -> Result<(f64, bool)> {
         return Ok((r, on_grid(r)));
     }
     let mut finest_fit = None;
-    for k in 0..=6 {
+    for k in 0..=9 {
         let r = 10f64.powi(-k);
         if !fits(r) {
             break;
