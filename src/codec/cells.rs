@@ -29,8 +29,8 @@ pub struct CellsRequest<'a> {
 /// One level's cells of a `.vtz` file, with what they were measured against.
 #[derive(Clone, Debug)]
 pub struct FileCells {
-    /// One cell per site of the level, in rank order; coordinates in the frame of
-    /// [`FileCells::to_crs`] (CRS units relative to sample (0, 0)'s centre).
+    /// One cell per site of the level, in rank order; coordinates in CRS units relative to
+    /// sample (0, 0)'s centre ([`FileCells::geojson`] writes them in CRS units).
     pub cells: Vec<Cell>,
     /// The level's sites (levels 0..=K), in rank order.
     pub sites: Vec<Site>,
