@@ -67,22 +67,6 @@ pub struct Args {
 }
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
-    // The output's format is checked before the input is opened.
-    let points_out = vtz::formats::points::is_points_path(&a.output);
-    if !points_out && a.format.is_none() {
-        vtz::formats::Format::from_path(&a.output)?;
-    }
-    if common::is_points_file(&a.input)? {
-        common::check_output(&a.input, &a.output, a.force)?;
-        let bytes = common::read_file(&a.input)?;
-        return crate::points::decode(&a, &bytes, ui);
-    }
-    if points_out {
-        return Err(vtz::Error::invalid(format!(
-            "{} is a raster file: it decodes to a raster format (.tif, .png, .exr, .hgt, .asc, .f32), not to points",
-            a.input.display()
-        )));
-    }
     if a.sites_only || a.cell.is_some() || a.column.is_some() || a.only_positions || a.crs.is_some()
     {
         return Err(vtz::Error::invalid(

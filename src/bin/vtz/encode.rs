@@ -95,10 +95,6 @@ pub struct Args {
 }
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
-    crate::points::check_encode_options(&a)?;
-    if crate::points::is_points_input(&a) {
-        return crate::points::encode(&a, ui);
-    }
     let format = common::parse_format(a.format.as_deref())?;
     let bound = a.max_error.as_deref().map(ErrorBound::parse).transpose()?;
     let output = a

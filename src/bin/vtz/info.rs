@@ -23,9 +23,6 @@ pub struct Args {
 
 pub fn run(a: Args, _ui: &Ui) -> Result<()> {
     let bytes = common::read_file(&a.input)?;
-    if vtz::is_points_file(&bytes) {
-        return crate::points::info(&a, &bytes);
-    }
     let mut dec = vtz::Decoder::with_limits(std::io::Cursor::new(bytes), Limits::default())
         .map_err(|e| e.context(a.input.display()))?;
     let info = dec.info().clone();

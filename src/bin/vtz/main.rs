@@ -83,9 +83,26 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let ui = common::Ui { quiet: cli.quiet };
     let res = match cli.cmd {
-        Cmd::Encode(a) => encode::run(a, &ui),
-        Cmd::Decode(a) => decode::run(a, &ui),
-        Cmd::Info(a) => info::run(a, &ui),
+        // Point sets (`points`) share encode, decode and info with rasters: routed here, so
+        // the raster commands know nothing of them.
+        Cmd::Encode(a) => points::check_encode_options(&a).and_then(|()| {
+            if points::is_points_input(&a) {
+                points::encode(&a, &ui)
+            } else {
+                encode::run(a, &ui)
+            }
+        }),
+        Cmd::Decode(a) => points::decode_route(&a).and_then(|bytes| match bytes {
+            Some(b) => points::decode(&a, &b, &ui),
+            None => decode::run(a, &ui),
+        }),
+        Cmd::Info(a) => common::is_points_file(&a.input).and_then(|pts| {
+            if pts {
+                common::read_file(&a.input).and_then(|b| points::info(&a, &b))
+            } else {
+                info::run(a, &ui)
+            }
+        }),
         Cmd::Compare(a) => compare::run(a, &ui),
         Cmd::Convert(a) => convert::run(a, &ui),
         Cmd::Sites(a) => sites::run(a, &ui),

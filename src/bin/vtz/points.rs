@@ -243,6 +243,28 @@ pub fn encode(a: &encode::Args, ui: &Ui) -> Result<()> {
     Ok(())
 }
 
+/// Which way `vtz decode` goes, decided before any work: the output's format is checked
+/// before the input is opened; a point-set file comes back as its bytes (decoded here), a
+/// raster file as `None` (the raster decoder's), and a raster file to a points output is a
+/// usage error.
+pub fn decode_route(a: &decode::Args) -> Result<Option<Vec<u8>>> {
+    let points_out = is_points_path(&a.output);
+    if !points_out && a.format.is_none() {
+        vtz::formats::Format::from_path(&a.output)?;
+    }
+    if common::is_points_file(&a.input)? {
+        common::check_output(&a.input, &a.output, a.force)?;
+        return common::read_file(&a.input).map(Some);
+    }
+    if points_out {
+        return Err(Error::invalid(format!(
+            "{} is a raster file: it decodes to a raster format (.tif, .png, .exr, .hgt, .asc, .f32), not to points",
+            a.input.display()
+        )));
+    }
+    Ok(None)
+}
+
 /// `vtz decode` of a point-set file.
 pub fn decode(a: &decode::Args, bytes: &[u8], ui: &Ui) -> Result<()> {
     let ctx = |e: Error| e.context(a.input.display());
