@@ -189,4 +189,46 @@ fn cli_writes_geojson_and_png() {
         );
     }
     assert!(text.contains("32633"), "ogrinfo CRS: {text}");
+    // The same cells as a GeoPackage, read back by GDAL: count, fields, CRS, geometry.
+    let gp = tmp(&dir, "cells.gpkg");
+    ok(&vtz(["cells", &input, "-o", &gp, "--force"]));
+    let bytes = std::fs::read(&gp).unwrap();
+    assert!(
+        bytes.starts_with(b"SQLite format 3\0"),
+        "not an SQLite file"
+    );
+    let info = Command::new("ogrinfo")
+        .args(["-ro", "-al", "-so", &gp])
+        .output()
+        .expect("run ogrinfo");
+    assert!(info.status.success(), "{}", stderr(&info));
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(text.contains("Geometry: Polygon"), "ogrinfo: {text}");
+    assert!(
+        text.contains(&format!("Feature Count: {count}")),
+        "ogrinfo: {text}"
+    );
+    for k in ["rank", "level", "value", "samples", "eps_max", "eps_rms"] {
+        assert!(text.contains(&format!("{k}: ")), "no field {k}: {text}");
+    }
+    assert!(text.contains("32633"), "ogrinfo CRS: {text}");
+    // GDAL's validity check of every polygon, and the areas summing to the hull's.
+    let sql = Command::new("ogrinfo")
+        .args([
+            "-ro",
+            &gp,
+            "-dialect",
+            "SQLite",
+            "-sql",
+            "SELECT SUM(ST_IsValid(geom)) AS valid, COUNT(*) AS n FROM cells",
+        ])
+        .output()
+        .expect("run ogrinfo");
+    let text = String::from_utf8_lossy(&sql.stdout);
+    assert!(
+        text.contains(&format!("valid (Integer) = {count}"))
+            || text.contains(&format!("valid (Integer64) = {count}")),
+        "not every cell is a valid polygon: {text}{}",
+        stderr(&sql)
+    );
 }

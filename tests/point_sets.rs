@@ -571,6 +571,17 @@ fn cli_cells_of_a_point_set_are_geojson_polygons() {
         for field in ["rank", "level", "value", "eps_max", "eps_rms", "samples"] {
             assert!(s.contains(field), "{field}: {s}");
         }
+        // The same cells as a GeoPackage.
+        let gp = tmp(&d, "c.gpkg");
+        ok(&vtz(["cells", &f, "--level", "1", "-o", &gp, "-q"]));
+        let o = Command::new("ogrinfo")
+            .args(["-ro", "-so", "-al", &gp])
+            .output()
+            .unwrap();
+        let s = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success(), "{s}");
+        assert!(s.contains(&format!("Feature Count: {cells}")), "{s}");
+        assert!(s.contains("Geometry: Polygon"), "{s}");
     }
 }
 

@@ -9,10 +9,15 @@
 //! * [`voronoi_cells`]: the cells and their residual statistics.
 //! * [`convex_hull`], [`polygon_area`]: the helpers a caller needs for the hull.
 //! * [`geojson`]: a GeoJSON FeatureCollection of cells.
+//! * `gpkg` (feature `gpkg`): the same features as a GeoPackage.
 
 mod geojson;
+#[cfg(feature = "gpkg")]
+mod gpkg;
 
 pub use geojson::{GeoJsonOptions, SiteInfo, geojson};
+#[cfg(feature = "gpkg")]
+pub use gpkg::gpkg;
 
 use crate::error::{Error, Result};
 use rayon::prelude::*;

@@ -215,6 +215,22 @@ impl FileCells {
     /// samples, eps_max, eps_rms), the `"crs"` member when the EPSG code is known, and a
     /// `"vtz"` member saying what ε was measured against.
     pub fn geojson(&self, source_name: Option<&str>) -> Result<Vec<u8>> {
+        let (cells, sites, opts) = self.features(source_name);
+        cells::geojson(&cells, &sites, &opts)
+    }
+
+    /// The same features as [`FileCells::geojson`] as a GeoPackage (one polygon table
+    /// `cells`; the `"vtz"` member becomes the table's description).
+    #[cfg(feature = "gpkg")]
+    pub fn gpkg(&self, source_name: Option<&str>) -> Result<Vec<u8>> {
+        let (cells, sites, opts) = self.features(source_name);
+        let wkt = self.georef.as_ref().and_then(|g| g.wkt.as_deref());
+        cells::gpkg(&cells, &sites, &opts, wkt)
+    }
+
+    /// The cells in output coordinates, their sites' descriptions, and the collection's
+    /// properties.
+    fn features(&self, source_name: Option<&str>) -> (Vec<Cell>, Vec<SiteInfo>, GeoJsonOptions) {
         let polys = self.polygons();
         let cells: Vec<Cell> = self
             .cells
@@ -267,7 +283,7 @@ impl FileCells {
             epsg: self.georef.as_ref().and_then(|g| g.epsg),
             about,
         };
-        cells::geojson(&cells, &sites, &opts)
+        (cells, sites, opts)
     }
 
     /// A picture: the reference's hillshade, each cell tinted by its eps_max, the cell

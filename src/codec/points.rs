@@ -630,6 +630,8 @@ pub struct PointHierarchy {
     pub samples: Vec<([f64; 2], f64)>,
     /// EPSG code, when known.
     pub epsg: Option<u32>,
+    /// The CRS's WKT, when the file carries one.
+    pub wkt: Option<String>,
     /// Levels in the file.
     pub levels: usize,
 }
@@ -678,6 +680,7 @@ pub fn point_hierarchy(
         site_value: op.sites.values[0].clone(),
         samples,
         epsg: h.epsg,
+        wkt: h.wkt.clone(),
         levels,
     })
 }

@@ -1,4 +1,4 @@
-//! `vtz cells`: one level's Voronoi cells of a .vtz's sites, with their residual ε, as GeoJSON or a PNG picture.
+//! `vtz cells`: one level's Voronoi cells of a .vtz's sites, with their residual ε, as GeoJSON, a GeoPackage or a PNG picture.
 
 use crate::common::{self, RasterOpts, Ui};
 use std::path::PathBuf;
@@ -9,8 +9,8 @@ use vtz::{CellsRequest, Error, Limits, Result};
 pub struct Args {
     /// Input .vtz file with a sites section (untiled).
     pub input: PathBuf,
-    /// Output: .geojson/.json (polygons with rank, level, value, samples, eps_max, eps_rms)
-    /// or .png (the cells tinted by eps_max over a hillshade).
+    /// Output: .geojson/.json or .gpkg (polygons with rank, level, value, samples, eps_max,
+    /// eps_rms) or .png (the cells tinted by eps_max over a hillshade).
     #[arg(short, long)]
     pub output: PathBuf,
     /// The cells of the sites of levels 0..=K (default: the last level).
@@ -32,6 +32,7 @@ pub struct Args {
 
 enum Kind {
     GeoJson,
+    GeoPackage,
     Png,
 }
 
@@ -43,10 +44,11 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         .map(str::to_ascii_lowercase);
     let kind = match ext.as_deref() {
         Some("geojson" | "json") => Kind::GeoJson,
+        Some("gpkg") => Kind::GeoPackage,
         Some("png") => Kind::Png,
         _ => {
             return Err(Error::invalid(format!(
-                "{}: the output must end in .geojson, .json or .png",
+                "{}: the output must end in .geojson, .json, .gpkg or .png",
                 a.output.display()
             )));
         }
@@ -63,7 +65,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     if vtz::is_points_file(&bytes) {
         if matches!(kind, Kind::Png) || a.source.is_some() {
             return Err(Error::invalid(
-                "a point set's cells are written as GeoJSON, measured against its own decode (no .png, no --source)",
+                "a point set's cells are written as GeoJSON or a GeoPackage, measured against its own decode (no .png, no --source)",
             ));
         }
         return points_cells(&a, &bytes, start, ui);
@@ -82,6 +84,10 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         Kind::GeoJson => {
             let name = a.source.as_ref().map(|p| p.display().to_string());
             cells.geojson(name.as_deref())?
+        }
+        Kind::GeoPackage => {
+            let name = a.source.as_ref().map(|p| p.display().to_string());
+            cells.gpkg(name.as_deref())?
         }
         Kind::Png => ui.busy("drawing", || cells.png())?,
     };
@@ -166,7 +172,15 @@ fn points_cells(a: &Args, bytes: &[u8], start: Instant, ui: &Ui) -> Result<()> {
         epsg: h.epsg,
         about,
     };
-    let out = vtz::cells::geojson(&cells, &infos, &opts)?;
+    let out = if a
+        .output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gpkg"))
+    {
+        vtz::cells::gpkg(&cells, &infos, &opts, h.wkt.as_deref())?
+    } else {
+        vtz::cells::geojson(&cells, &infos, &opts)?
+    };
     vtz::formats::write_file(&a.output, out, a.force)?;
     let n = cells.iter().filter(|c| c.polygon.len() >= 3).count();
     let worst = cells.iter().map(|c| c.eps_max).fold(0.0, f64::max);
