@@ -1,0 +1,278 @@
+"""The vtz codec for numcodecs (Zarr format 2 stores, and anything else that takes a numcodecs codec).
+
+``Vtz`` is an array-aware codec: ``encode`` takes the chunk as a numpy array (not its raw
+bytes) and returns a self-describing vtz stream; ``decode`` gives the array back with its
+shape and dtype. Importing this module registers the codec under the id ``"vtz"``; the
+package also declares it in the ``numcodecs.codecs`` entry point group, so
+``numcodecs.get_codec({"id": "vtz", ...})`` works without importing it first.
+
+>>> import numpy as np, numcodecs, vtz.numcodecs
+>>> codec = numcodecs.get_codec({"id": "vtz", "max_error": 0.5})
+>>> a = np.arange(64, dtype=np.float32).reshape(8, 8)
+>>> bool(np.all(np.abs(codec.decode(codec.encode(a)) - a) <= 0.5))
+True
+
+In a Zarr format 2 array (zarr-python 3 passes the chunk array itself to a ``compressor``
+with no ``filters`` in front of it), give it as the compressor:
+``zarr.create_array(..., zarr_format=2, compressors=vtz.numcodecs.Vtz(max_error=0.5), filters=None)``.
+For Zarr format 3 use :class:`vtz.zarr.VtzCodec` as the ``serializer``.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from typing import Any
+
+import numpy as np
+from numcodecs.abc import Codec
+from numcodecs.compat import ensure_bytes, ndarray_copy
+from numcodecs.registry import register_codec
+
+import vtz
+
+__all__ = ["Vtz"]
+
+#: The dtypes vtz holds (native byte order).
+SUPPORTED_DTYPES = ("uint8", "int16", "uint16", "int32", "float32", "float64")
+
+_CONFIG_KEYS = ("max_error", "lossless", "nodata", "method", "threads")
+
+
+def _check_params(
+    max_error: Any, lossless: Any, nodata: Any, method: Any, threads: Any
+) -> dict[str, Any]:
+    """Check the codec parameters and return them as plain JSON types.
+
+    Only what any valid writer produces is checked here, so that opening an array for
+    reading never fails on an encode-only detail (an unknown ``method`` name, say, is
+    left for ``vtz.encode`` to report).
+    """
+    if not isinstance(lossless, (bool, np.bool_)):
+        raise TypeError(f"lossless must be True or False, not {type(lossless).__name__}")
+    lossless = bool(lossless)
+    if max_error is not None:
+        if isinstance(max_error, (bool, np.bool_)) or not isinstance(max_error, numbers.Real):
+            raise TypeError(
+                f"max_error must be a number in data units or None, not {type(max_error).__name__}"
+            )
+        max_error = float(max_error)
+        if not (math.isfinite(max_error) and max_error >= 0):
+            raise vtz.InvalidArgumentError(f"max_error {max_error} is not a finite number >= 0")
+        if lossless:
+            raise vtz.InvalidArgumentError("lossless=True and a max_error exclude each other")
+    if nodata is not None:
+        if isinstance(nodata, (bool, np.bool_)) or not isinstance(nodata, numbers.Real):
+            raise TypeError(f"nodata must be a number or None, not {type(nodata).__name__}")
+        if isinstance(nodata, numbers.Integral):
+            nodata = int(nodata)
+        else:
+            nodata = float(nodata)
+            if math.isnan(nodata):
+                # NaN samples of float arrays are always nodata: nodata=NaN says nothing more.
+                nodata = None
+            elif not math.isfinite(nodata):
+                raise vtz.InvalidArgumentError(
+                    f"nodata {nodata} is not finite (NaN is always nodata in float arrays)"
+                )
+    if method is not None and not isinstance(method, str):
+        raise TypeError(f"method must be a string such as 'best' or 'grid', not {type(method).__name__}")
+    if isinstance(threads, (bool, np.bool_)) or not isinstance(threads, numbers.Integral):
+        raise TypeError(f"threads must be an integer, not {type(threads).__name__}")
+    threads = int(threads)
+    if threads < 0:
+        raise vtz.InvalidArgumentError(f"threads {threads} is negative (0 means all cores)")
+    return {
+        "max_error": max_error,
+        "lossless": lossless,
+        "nodata": nodata,
+        "method": method,
+        "threads": threads,
+    }
+
+
+def _check_dtype(dtype: Any) -> np.dtype:
+    """The native-byte-order form of ``dtype``, or ``vtz.DtypeError`` (an ``InvalidArgumentError``) if vtz cannot hold it."""
+    dt = np.dtype(dtype)
+    native = dt.newbyteorder("=") if dt.byteorder not in ("=", "|") else dt
+    if native.name not in SUPPORTED_DTYPES:
+        raise vtz.DtypeError(
+            f"vtz cannot hold dtype {dt} (it holds {', '.join(SUPPORTED_DTYPES)})"
+        )
+    return native
+
+
+def _plane_shape(shape: tuple[int, ...]) -> tuple[int, int]:
+    """The 2-D shape vtz codes a chunk of ``shape`` as.
+
+    A 1-D chunk of n samples is coded as 1 x n; an N-D chunk whose axes before the last
+    two all have size 1 is coded as its last two axes. Anything else raises
+    ``vtz.InvalidArgumentError``.
+    """
+    shape = tuple(int(s) for s in shape)
+    if len(shape) == 0:
+        raise vtz.InvalidArgumentError("vtz codes 2-D chunks; this chunk is a 0-D scalar")
+    if len(shape) == 1:
+        return (1, shape[0])
+    if any(s != 1 for s in shape[:-2]):
+        raise vtz.InvalidArgumentError(
+            f"vtz codes 2-D chunks; chunk shape {shape} has axes of size > 1 before the last two"
+            " (use chunks of size 1 along every axis but the last two)"
+        )
+    return (shape[-2], shape[-1])
+
+
+def _as_plane(array: Any) -> np.ndarray:
+    """``array`` as the 2-D, C-contiguous, native-endian numpy array ``vtz.encode`` takes."""
+    a = np.asarray(array)
+    dt = _check_dtype(a.dtype)
+    a = a.reshape(_plane_shape(a.shape))
+    return np.ascontiguousarray(a, dtype=dt)
+
+
+class Vtz(Codec):
+    """numcodecs codec of vtz: error-bounded compression of 2-D elevation chunks.
+
+    Every valid sample of a chunk decodes within ``max_error`` of its value (exactly when
+    lossless); each encoded chunk is a self-describing vtz stream (shape, dtype and nodata
+    are stored in it, not in the codec configuration).
+
+    Parameters
+    ----------
+    max_error : float, optional
+        The absolute error bound in data units. ``None`` (the default) is lossless.
+    lossless : bool, optional
+        Lossless coding; excludes ``max_error``.
+    nodata : int or float, optional
+        A value meaning "no data": such samples decode to exactly this value. NaN samples
+        of float chunks are always nodata (``nodata=NaN`` is the same as ``None``); a float
+        chunk holding NaN with a non-NaN ``nodata`` cannot be encoded.
+    method : str, optional
+        ``None``/``"best"`` (try the methods, keep the smallest), or a method name such as
+        ``"sibson"``, ``"grid"``, ``"haar"``, ``"fis"``, ``"residual"`` (or a comma list).
+    threads : int, optional
+        Threads per chunk (0 = all cores). The bytes are the same for every value; the
+        default 1 suits callers that code several chunks at once.
+
+    Notes
+    -----
+    vtz codes 2-D arrays. ``encode`` codes a 1-D chunk of n samples as 1 x n, and an N-D
+    chunk whose axes before the last two all have size 1 as its last two axes; other
+    chunks raise :class:`vtz.InvalidArgumentError`. ``decode`` returns the 2-D array
+    (numcodecs' callers reshape it, or pass ``out``).
+    """
+
+    codec_id = "vtz"
+
+    def __init__(
+        self,
+        max_error: float | None = None,
+        lossless: bool = False,
+        nodata: float | None = None,
+        method: str | None = None,
+        threads: int = 1,
+    ) -> None:
+        params = _check_params(max_error, lossless, nodata, method, threads)
+        self.max_error = params["max_error"]
+        self.lossless = params["lossless"]
+        self.nodata = params["nodata"]
+        self.method = params["method"]
+        self.threads = params["threads"]
+
+    def encode(self, buf: Any) -> bytes:
+        """Encode one chunk.
+
+        Parameters
+        ----------
+        buf : array_like
+            The chunk: a numpy array (or anything ``numpy.asarray`` takes) of dtype uint8,
+            int16, uint16, int32, float32 or float64, 2-D or reducible to 2-D (see Notes of
+            the class).
+
+        Returns
+        -------
+        bytes
+            The vtz stream.
+
+        Raises
+        ------
+        vtz.InvalidArgumentError
+            The chunk's shape or dtype cannot be coded, or the parameters do not fit it.
+        vtz.UnmetError
+            The chosen method cannot meet the bound on this chunk.
+        """
+        plane = _as_plane(buf)
+        return vtz.encode(
+            plane,
+            max_error=self.max_error,
+            lossless=self.lossless,
+            nodata=self.nodata,
+            method=self.method,
+            threads=self.threads,
+        )
+
+    def decode(self, buf: Any, out: Any = None) -> np.ndarray:
+        """Decode one chunk.
+
+        Parameters
+        ----------
+        buf : bytes-like
+            A vtz stream (bytes, bytearray, memoryview or a uint8 numpy array).
+        out : numpy.ndarray, optional
+            Where to put the samples: an array of the chunk's dtype and number of samples
+            (any shape, as numcodecs' ``ndarray_copy`` takes it).
+
+        Returns
+        -------
+        numpy.ndarray
+            The 2-D chunk (``out`` when given). Nodata samples are the nodata value, or NaN
+            in float chunks without one.
+
+        Raises
+        ------
+        vtz.CorruptError
+            The bytes are truncated or damaged.
+        """
+        decoded = vtz.decode(ensure_bytes(buf), threads=self.threads)
+        return ndarray_copy(decoded, out)
+
+    def get_config(self) -> dict[str, Any]:
+        """The codec's configuration as a JSON-ready dict (``id`` and the constructor's arguments).
+
+        Returns
+        -------
+        dict
+            ``{"id": "vtz", "max_error": ..., "lossless": ..., "nodata": ..., "method": ...,
+            "threads": ...}``, all plain Python types.
+        """
+        return {"id": self.codec_id, **{k: getattr(self, k) for k in _CONFIG_KEYS}}
+
+    @classmethod
+    def from_config(cls, config: dict[str, Any]) -> Vtz:
+        """Build the codec from a configuration made by :meth:`get_config`.
+
+        Parameters
+        ----------
+        config : dict
+            The configuration; an ``id`` key, if present, must be ``"vtz"``.
+
+        Returns
+        -------
+        Vtz
+        """
+        config = dict(config)
+        codec_id = config.pop("id", cls.codec_id)
+        if codec_id != cls.codec_id:
+            raise vtz.InvalidArgumentError(f"codec id {codec_id!r} is not {cls.codec_id!r}")
+        unknown = sorted(set(config) - set(_CONFIG_KEYS))
+        if unknown:
+            raise vtz.InvalidArgumentError(f"unknown vtz codec parameters: {', '.join(unknown)}")
+        return cls(**config)
+
+    def __repr__(self) -> str:
+        """The constructor call that rebuilds this codec."""
+        args = ", ".join(f"{k}={getattr(self, k)!r}" for k in _CONFIG_KEYS)
+        return f"Vtz({args})"
+
+
+register_codec(Vtz)

@@ -1,0 +1,413 @@
+"""The vtz codec for Zarr format 3 (zarr-python >= 3): an array-to-bytes codec named ``"vtz"``.
+
+Give it as the array's ``serializer``, with no compressor after it (vtz streams are
+already entropy coded, and with no bytes-to-bytes codec after it zarr lets the codec read
+its chunks itself, which is how a corrupt chunk gets named in the error)::
+
+    import zarr, vtz.zarr
+    z = zarr.create_array(store, shape=(3601, 3601), chunks=(512, 512), dtype="int16",
+                          serializer=vtz.zarr.VtzCodec(max_error=0.5, nodata=-32768),
+                          compressors=None, fill_value=-32768)
+
+Each chunk is a self-describing vtz stream: the configuration holds only the encode
+parameters (``max_error``, ``lossless``, ``nodata``, ``method``, ``threads``), no shape
+or dtype. Importing this module registers the codec with ``zarr.registry``; the package
+also declares it in the ``zarr.codecs`` entry point group, so stores written with it open
+without importing it first.
+
+Chunks are 2-D: a chunk shape may have leading axes of size 1 (``(1, 512, 512)`` in a
+``(time, y, x)`` array) and a 1-D chunk of n samples is coded as 1 x n. Zarr pads the
+partial chunks at the array's edges with the fill value; a NaN fill value is nodata in
+float chunks, and ``nodata=fill_value`` keeps an integer array's padding exact and cheap.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from zarr.abc.codec import ArrayBytesCodec, ArrayBytesCodecPartialDecodeMixin
+from zarr.core.common import parse_named_configuration
+from zarr.registry import register_codec
+
+import vtz
+from vtz.numcodecs import _CONFIG_KEYS, _as_plane, _check_dtype, _check_params, _plane_shape
+
+if TYPE_CHECKING:
+    from typing import Self
+
+    from zarr.abc.store import ByteGetter
+    from zarr.core.array_spec import ArraySpec
+    from zarr.core.buffer import Buffer, NDBuffer
+    from zarr.core.chunk_grids import ChunkGrid
+    from zarr.core.common import JSON
+    from zarr.core.dtype.wrapper import TBaseDType, TBaseScalar, ZDType
+    from zarr.core.indexing import SelectorTuple
+
+__all__ = ["VtzCodec"]
+
+CODEC_NAME = "vtz"
+
+
+def _describe_chunk(byte_getter: Any) -> str:
+    """How an error message names the chunk ``byte_getter`` reads."""
+    coords = getattr(byte_getter, "chunk_coords", None)
+    if coords is not None:
+        # Sharding hands its inner chunks to the codec by their coordinates in the shard.
+        return f"inner chunk {tuple(int(c) for c in coords)} of a shard"
+    if hasattr(byte_getter, "store") and hasattr(byte_getter, "path"):
+        # A StorePath: its string is the store's URL followed by the chunk key.
+        return f"chunk {str(byte_getter)!r}"
+    return f"chunk {byte_getter!r}"
+
+
+def _describe_spec(chunk_spec: ArraySpec) -> str:
+    """How an error message names a chunk known only by its spec."""
+    shape = "x".join(str(s) for s in chunk_spec.shape)
+    return f"a {shape} {chunk_spec.dtype.to_native_dtype()} chunk (zarr gave the codec no key)"
+
+
+def _renamed(err: vtz.VtzError, where: str) -> vtz.VtzError:
+    """``err`` as an exception of the same class whose message starts with ``where``."""
+    return type(err)(f"{where}: {err}")
+
+
+def _window(selection: Any, shape: tuple[int, ...]) -> tuple[tuple[int, int, int, int], tuple] | None:
+    """The vtz window covering ``selection`` of a chunk of ``shape``, if worth decoding alone.
+
+    Returns ``((x, y, width, height), rest)``, where ``rest`` indexes the window's samples
+    (reshaped to the chunk's number of axes) to give ``chunk[selection]``; or ``None``
+    when the selection is not a rectangle (steps, index arrays) or is the whole chunk.
+    """
+    if not isinstance(selection, tuple) or len(selection) != len(shape) or len(shape) == 0:
+        return None
+    plane = _plane_shape(shape)
+    lead = selection[:-2] if len(shape) >= 2 else ()
+    spans = []  # (start, stop) per plane axis
+    rest_tail = []
+    tail = selection[-2:] if len(shape) >= 2 else (slice(0, 1), selection[0])
+    for sel, n in zip(tail, plane):
+        if isinstance(sel, (int, np.integer)):
+            i = int(sel) + (n if sel < 0 else 0)
+            if not 0 <= i < n:
+                return None
+            spans.append((i, i + 1))
+            rest_tail.append(0)
+        elif isinstance(sel, slice):
+            start, stop, step = sel.indices(n)
+            if step != 1 or stop <= start:
+                return None
+            spans.append((start, stop))
+            rest_tail.append(slice(None))
+        else:
+            return None
+    (y0, y1), (x0, x1) = spans
+    if (y1 - y0, x1 - x0) == plane:
+        return None
+    if len(shape) == 1:
+        rest = (rest_tail[1],)
+    else:
+        rest = tuple(lead) + tuple(rest_tail)
+    return (x0, y0, x1 - x0, y1 - y0), rest
+
+
+@dataclass(frozen=True)
+class VtzCodec(ArrayBytesCodec, ArrayBytesCodecPartialDecodeMixin):
+    """Zarr v3 array-to-bytes codec of vtz: error-bounded compression of elevation chunks.
+
+    Every valid sample of a chunk decodes within ``max_error`` of its value (exactly when
+    lossless). Encoding and decoding run in worker threads (``asyncio.to_thread``; vtz
+    releases the GIL), so zarr codes several chunks at once.
+
+    Parameters
+    ----------
+    max_error : float, optional
+        The absolute error bound in data units. ``None`` (the default) is lossless.
+    lossless : bool, optional
+        Lossless coding; excludes ``max_error``.
+    nodata : int or float, optional
+        A value meaning "no data": such samples decode to exactly this value. NaN samples
+        of float chunks are always nodata (``nodata=NaN`` is the same as ``None``).
+    method : str, optional
+        ``None``/``"best"``, or a method name (``"sibson"``, ``"grid"``, ``"haar"``,
+        ``"fis"``, ``"residual"``) or a comma list of them.
+    threads : int, optional
+        Threads per chunk (0 = all cores); the bytes are the same for every value.
+
+    Notes
+    -----
+    With no other codec after it (``compressors=None``) zarr reads chunks through the
+    codec's partial-decode entry, which knows each chunk's store key: a damaged chunk then
+    raises :class:`vtz.CorruptError` naming it (``chunk 'file:///data/dem.zarr/c/3/1': ...``),
+    and a read of part of a chunk decodes only the window it needs (bit-identical to the
+    full decode). Behind a bytes-to-bytes codec, or when zarr re-reads a chunk to merge a
+    partial write, zarr gives the codec only the chunk's shape and the message says so.
+    """
+
+    is_fixed_size = False
+
+    max_error: float | None
+    lossless: bool
+    nodata: float | int | None
+    method: str | None
+    threads: int
+
+    def __init__(
+        self,
+        *,
+        max_error: float | None = None,
+        lossless: bool = False,
+        nodata: float | int | None = None,
+        method: str | None = None,
+        threads: int = 1,
+    ) -> None:
+        params = _check_params(max_error, lossless, nodata, method, threads)
+        for key in _CONFIG_KEYS:
+            object.__setattr__(self, key, params[key])
+
+    # -- configuration ---------------------------------------------------------------
+
+    @classmethod
+    def from_dict(cls, data: dict[str, JSON]) -> Self:
+        """Build the codec from its Zarr v3 metadata.
+
+        Parameters
+        ----------
+        data : dict
+            ``{"name": "vtz", "configuration": {...}}``; the configuration may be left out
+            (all defaults), unknown keys are an error.
+
+        Returns
+        -------
+        VtzCodec
+        """
+        _, configuration = parse_named_configuration(data, CODEC_NAME, require_configuration=False)
+        configuration = dict(configuration or {})
+        unknown = sorted(set(configuration) - set(_CONFIG_KEYS))
+        if unknown:
+            raise vtz.InvalidArgumentError(f"unknown vtz codec parameters: {', '.join(unknown)}")
+        return cls(**configuration)  # type: ignore[arg-type]
+
+    def to_dict(self) -> dict[str, JSON]:
+        """The codec's Zarr v3 metadata.
+
+        Returns
+        -------
+        dict
+            ``{"name": "vtz", "configuration": {"max_error": ..., "lossless": ...,
+            "nodata": ..., "method": ..., "threads": ...}}`` (plain JSON types).
+        """
+        return {
+            "name": CODEC_NAME,
+            "configuration": {key: getattr(self, key) for key in _CONFIG_KEYS},
+        }
+
+    # -- checks against the array ----------------------------------------------------
+
+    def validate(
+        self,
+        *,
+        shape: tuple[int, ...],
+        dtype: ZDType[TBaseDType, TBaseScalar],
+        chunk_grid: ChunkGrid,
+    ) -> None:
+        """Check that vtz can hold the array's chunks.
+
+        Parameters
+        ----------
+        shape : tuple of int
+            The array's shape.
+        dtype : ZDType
+            The array's data type: uint8, int16, uint16, int32, float32 or float64.
+        chunk_grid : ChunkGrid
+            The chunk grid: its chunk shape must be 2-D once leading size-1 axes are
+            dropped (or 1-D).
+
+        Raises
+        ------
+        vtz.InvalidArgumentError
+            The dtype or the chunk shape cannot be coded.
+        """
+        _check_dtype(dtype.to_native_dtype())
+        chunk_shape = getattr(chunk_grid, "chunk_shape", None)
+        if chunk_shape is not None:
+            _plane_shape(tuple(chunk_shape))
+
+    def evolve_from_array_spec(self, array_spec: ArraySpec) -> Self:
+        """Check the codec against the array (or, inside a shard, the inner chunk) spec.
+
+        Zarr calls this for every codec, including those inside a sharding codec, which
+        :meth:`validate` does not reach. Nothing is inferred: the codec comes back as is.
+
+        Parameters
+        ----------
+        array_spec : ArraySpec
+            The spec: its dtype must be one vtz holds; a float array whose fill value is
+            NaN cannot have a non-NaN ``nodata`` (its padding and unwritten chunks would be
+            NaN, which vtz refuses next to another nodata value).
+
+        Returns
+        -------
+        VtzCodec
+            ``self``.
+        """
+        dt = _check_dtype(array_spec.dtype.to_native_dtype())
+        fill = array_spec.fill_value
+        if dt.kind == "f" and self.nodata is not None and fill is not None:
+            if math.isnan(float(fill)):
+                raise vtz.InvalidArgumentError(
+                    f"the fill value is NaN but nodata is {self.nodata}: NaN is nodata in float "
+                    "arrays, so leave nodata=None (or use fill_value=nodata)"
+                )
+        return self
+
+    def compute_encoded_size(self, input_byte_length: int, chunk_spec: ArraySpec) -> int:
+        """Not known in advance: vtz streams have a variable size.
+
+        Raises
+        ------
+        NotImplementedError
+            Always (zarr's convention for variable-size codecs).
+        """
+        raise NotImplementedError("vtz chunks have a variable encoded size")
+
+    # -- encoding and decoding -------------------------------------------------------
+
+    def _encode_sync(self, chunk_array: NDBuffer, chunk_spec: ArraySpec) -> Buffer | None:
+        """Encode one chunk in the calling thread (see :meth:`_encode_single`)."""
+        plane = _as_plane(chunk_array.as_numpy_array())
+        data = vtz.encode(
+            plane,
+            max_error=self.max_error,
+            lossless=self.lossless,
+            nodata=self.nodata,
+            method=self.method,
+            threads=self.threads,
+        )
+        return chunk_spec.prototype.buffer.from_bytes(data)
+
+    async def _encode_single(self, chunk_array: NDBuffer, chunk_spec: ArraySpec) -> Buffer | None:
+        """Encode one chunk into a vtz stream, in a worker thread.
+
+        Parameters
+        ----------
+        chunk_array : NDBuffer
+            The chunk, of ``chunk_spec.shape`` (edge chunks come padded with the fill value).
+        chunk_spec : ArraySpec
+            The chunk's shape, dtype, fill value and buffer prototype.
+
+        Returns
+        -------
+        Buffer
+            The vtz stream.
+        """
+        return await asyncio.to_thread(self._encode_sync, chunk_array, chunk_spec)
+
+    def _decode_bytes(
+        self,
+        data: bytes,
+        chunk_spec: ArraySpec,
+        where: str,
+        window: tuple[int, int, int, int] | None = None,
+    ) -> np.ndarray:
+        """Decode a stream (or a window of it); errors name the chunk by ``where``."""
+        plane = _plane_shape(chunk_spec.shape)
+        dtype = _check_dtype(chunk_spec.dtype.to_native_dtype())
+        try:
+            if window is None:
+                out = vtz.decode(data, threads=self.threads)
+            else:
+                out = vtz.decode(data, window=window, threads=self.threads)
+        except vtz.VtzError as err:
+            raise _renamed(err, where) from err
+        want = plane if window is None else (window[3], window[2])
+        if out.shape != want or out.dtype != dtype:
+            if window is None:
+                got = f"a {out.shape[0]}x{out.shape[1]} {out.dtype} raster"
+            else:
+                got = f"a {out.dtype} raster"
+            raise vtz.CorruptError(
+                f"{where}: the stream holds {got}, the array's chunks are "
+                f"{plane[0]}x{plane[1]} {dtype}"
+            )
+        return out
+
+    def _decode_sync(self, chunk_bytes: Buffer, chunk_spec: ArraySpec) -> NDBuffer:
+        """Decode one chunk in the calling thread (see :meth:`_decode_single`)."""
+        out = self._decode_bytes(chunk_bytes.to_bytes(), chunk_spec, _describe_spec(chunk_spec))
+        return chunk_spec.prototype.nd_buffer.from_numpy_array(out.reshape(chunk_spec.shape))
+
+    async def _decode_single(self, chunk_bytes: Buffer, chunk_spec: ArraySpec) -> NDBuffer:
+        """Decode one chunk, in a worker thread.
+
+        Zarr uses this entry behind other codecs and when it merges a partial write; it
+        gives no chunk key here, so errors name the chunk by its shape and dtype.
+
+        Parameters
+        ----------
+        chunk_bytes : Buffer
+            The vtz stream.
+        chunk_spec : ArraySpec
+            The chunk's shape and dtype (the decoded stream must match them).
+
+        Returns
+        -------
+        NDBuffer
+            The chunk, of ``chunk_spec.shape`` and dtype.
+
+        Raises
+        ------
+        vtz.CorruptError
+            The stream is damaged or does not hold a chunk of this shape and dtype.
+        """
+        return await asyncio.to_thread(self._decode_sync, chunk_bytes, chunk_spec)
+
+    async def _decode_partial_single(
+        self, byte_getter: ByteGetter, selection: SelectorTuple, chunk_spec: ArraySpec
+    ) -> NDBuffer | None:
+        """Read one chunk from the store and decode the part ``selection`` asks for.
+
+        Zarr uses this entry when the vtz codec is the array's only codec. A rectangular
+        selection smaller than the chunk decodes only that window.
+
+        Parameters
+        ----------
+        byte_getter : ByteGetter
+            The chunk's place in the store (a ``StorePath``, or an inner chunk of a shard).
+        selection : tuple
+            The chunk's samples wanted (slices, integers or index arrays).
+        chunk_spec : ArraySpec
+            The chunk's shape, dtype and buffer prototype.
+
+        Returns
+        -------
+        NDBuffer or None
+            ``chunk[selection]``, or ``None`` when the chunk is not in the store.
+
+        Raises
+        ------
+        vtz.CorruptError
+            The chunk is damaged; the message names it by its store key.
+        """
+        chunk_bytes = await byte_getter.get(prototype=chunk_spec.prototype)
+        if chunk_bytes is None:
+            return None
+        where = _describe_chunk(byte_getter)
+        data = chunk_bytes.to_bytes()
+        win = _window(selection, chunk_spec.shape)
+        if win is None:
+            out = await asyncio.to_thread(self._decode_bytes, data, chunk_spec, where)
+            part = out.reshape(chunk_spec.shape)[selection]
+        else:
+            window, rest = win
+            out = await asyncio.to_thread(self._decode_bytes, data, chunk_spec, where, window)
+            lead = (1,) * (len(chunk_spec.shape) - 2)
+            part = out.reshape(lead + out.shape if len(chunk_spec.shape) >= 2 else out.shape[1:])
+            part = part[rest]
+        return chunk_spec.prototype.nd_buffer.from_numpy_array(np.asarray(part))
+
+
+register_codec(CODEC_NAME, VtzCodec)
