@@ -379,12 +379,19 @@ fn info<'py>(py: Python<'py>, data: &Bound<'py, PyBytes>) -> PyResult<Bound<'py,
     d.set_item("range", range_tuple(fi.range))?;
     d.set_item("bytes", fi.file_bytes)?;
     let primary = fi.sections.iter().find(|s| s.primary);
-    d.set_item("method", primary.map(|s| s.name.clone()))?;
+    d.set_item(
+        "method",
+        primary.map(|s| {
+            s.method
+                .map_or_else(|| s.name.clone(), |m| m.name().to_string())
+        }),
+    )?;
     let sections = PyList::empty(py);
     for s in &fi.sections {
         let e = PyDict::new(py);
         e.set_item("index", s.index)?;
         e.set_item("name", &s.name)?;
+        e.set_item("method", s.method.map(|m| m.name()))?;
         e.set_item("bytes", s.bytes)?;
         e.set_item("primary", s.primary)?;
         e.set_item("required", s.required)?;

@@ -1,0 +1,284 @@
+"""The package API: round trips within the bound for every dtype, nodata, windows, info,
+read/write with a profile GDAL reads back, and a clear exception for each kind of bad input."""
+
+import os
+import shutil
+import subprocess
+import threading
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import vtz
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+CORPUS = os.path.join(HERE, "..", "..", "corpus")
+TUJUNGA = os.path.join(CORPUS, "srtm30m_bigtujunga_utm11.tif")
+KAUAI = os.path.join(CORPUS, "srtm3_N22W160_kauai.hgt")
+
+
+def terrain(h, w, dtype, seed=0):
+    """A smooth surface with noise, in the dtype's range."""
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:h, 0:w]
+    z = 80 * np.sin(x / 9.0) * np.cos(y / 7.0) + 0.05 * x * y + rng.normal(0, 2, (h, w))
+    if np.dtype(dtype).kind in "iu":
+        info = np.iinfo(dtype)
+        z = np.clip(np.round(z - z.min() + (0 if info.min == 0 else -100)), info.min, info.max)
+    return np.ascontiguousarray(z.astype(dtype))
+
+
+def max_err(a, b):
+    va = np.asarray(a, dtype=np.float64)
+    vb = np.asarray(b, dtype=np.float64)
+    ok = ~np.isnan(va)
+    assert np.array_equal(np.isnan(vb), ~ok), "nodata positions changed"
+    return float(np.abs(va[ok] - vb[ok]).max()) if ok.any() else 0.0
+
+
+@pytest.mark.parametrize("dtype", vtz.DTYPES)
+def test_lossless_round_trip_keeps_dtype_and_values(dtype):
+    a = terrain(37, 53, dtype)
+    b = vtz.encode(a)
+    d = vtz.decode(b)
+    assert d.dtype == a.dtype and d.shape == a.shape
+    assert np.array_equal(d, a)
+    assert vtz.info(b)["max_error"] in (0.0, None)
+
+
+@pytest.mark.parametrize("dtype", vtz.DTYPES)
+@pytest.mark.parametrize("bound", [0.5, 3.0, 10.0])
+def test_bound_holds_for_every_dtype(dtype, bound):
+    a = terrain(64, 48, dtype, seed=int(bound))
+    b = vtz.encode(a, max_error=bound)
+    d = vtz.decode(b)
+    assert d.dtype == a.dtype
+    assert max_err(a, d) <= bound
+    assert len(b) < a.nbytes
+
+
+def test_corpus_rasters_hold_the_bound_and_keep_georeferencing():
+    for path, bound in [(TUJUNGA, 1.0), (KAUAI, 5.0)]:
+        a, prof = vtz.read(path)
+        assert a.ndim == 2 and prof["crs"] is not None and prof["transform"] is not None
+        b = vtz.encode(a, max_error=bound, nodata=prof["nodata"])
+        d = vtz.decode(b)
+        valid = a != prof["nodata"] if prof["nodata"] is not None else np.ones(a.shape, bool)
+        assert np.abs(d.astype(np.int64) - a.astype(np.int64))[valid].max() <= bound
+        assert np.array_equal(d[~valid], a[~valid])
+
+
+def test_percent_bound_and_method_choice():
+    a = terrain(40, 40, np.float32)
+    rng = float(a.max() - a.min())
+    b = vtz.encode(a, max_error="1%")
+    assert max_err(a, vtz.decode(b)) <= 0.01 * rng * (1 + 1e-9)
+    for m in ["sibson", "grid", "haar"]:
+        b = vtz.encode(a, max_error=0.5, method=m)
+        assert vtz.info(b)["method"] == m
+        assert max_err(a, vtz.decode(b)) <= 0.5
+
+
+def test_nan_and_nodata_come_back_where_they_were():
+    a = terrain(30, 20, np.float32)
+    a[3:6, 4:9] = np.nan
+    d = vtz.decode(vtz.encode(a, max_error=0.25))
+    assert max_err(a, d) <= 0.25  # checks the NaN positions too
+    i = terrain(30, 20, np.int16)
+    i[0, :5] = -32768
+    b = vtz.encode(i, max_error=1, nodata=-32768)
+    assert vtz.info(b)["nodata"] == -32768
+    d = vtz.decode(b)
+    assert (d[0, :5] == -32768).all()
+    valid = i != -32768
+    assert np.abs(d.astype(int) - i.astype(int))[valid].max() <= 1
+    f = terrain(10, 10, np.float64)
+    f[2, 2] = -9999.0
+    d = vtz.decode(vtz.encode(f, nodata=-9999.0))
+    assert d[2, 2] == -9999.0 and np.array_equal(d, f)
+
+
+def test_window_and_scale():
+    a = terrain(50, 70, np.int16)
+    b = vtz.encode(a, max_error=2)
+    full = vtz.decode(b)
+    w = vtz.decode(b, window=(10, 5, 30, 20))
+    assert np.array_equal(w, full[5:25, 10:40])
+    with pytest.raises(vtz.InvalidArgumentError, match="sites section"):
+        vtz.decode(vtz.encode(a, max_error=2, method="grid"), scale=0.5)
+    s = vtz.decode(vtz.encode(a, max_error=2, method="sibson"), scale=0.5)
+    assert s.shape == (25, 35) and s.dtype == a.dtype
+
+
+def test_info_fields():
+    a = terrain(20, 30, np.uint16)
+    b = vtz.encode(a, max_error=1, method="sibson")
+    i = vtz.info(b)
+    assert (i["width"], i["height"], i["dtype"]) == (30, 20, "uint16")
+    assert i["bytes"] == len(b)
+    assert i["range"] == (float(a.min()), float(a.max()))
+    assert i["max_error"] is not None and i["max_error"] <= 1
+    assert i["method"] == "sibson" and i["sections"][0]["primary"]
+    assert i["crs"] is None and i["transform"] is None
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    h=st.integers(1, 40),
+    w=st.integers(1, 40),
+    dtype=st.sampled_from(vtz.DTYPES),
+    bound=st.one_of(st.none(), st.sampled_from([0.5, 1.0, 4.0, 25.0])),
+    seed=st.integers(0, 2**31),
+)
+def test_property_round_trip(h, w, dtype, bound, seed):
+    rng = np.random.default_rng(seed)
+    if np.dtype(dtype).kind in "iu":
+        info = np.iinfo(dtype)
+        lo = max(info.min, -5000)
+        hi = min(info.max, 5000)
+        a = rng.integers(lo, hi, (h, w), endpoint=True).astype(dtype)
+    else:
+        a = (rng.normal(0, 300, (h, w))).astype(dtype)
+        a[rng.random((h, w)) < 0.1] = np.nan
+    b = vtz.encode(a, max_error=bound)
+    d = vtz.decode(b)
+    assert d.dtype == a.dtype and d.shape == a.shape
+    if bound is None:
+        assert np.array_equal(d, a, equal_nan=True)
+    else:
+        assert max_err(a, d) <= bound
+
+
+def test_write_read_geotiff_and_vtz_keep_the_profile(tmp_path):
+    a, prof = vtz.read(TUJUNGA)
+    out = tmp_path / "t.vtz"
+    vtz.write(out, a, prof, max_error=2)
+    d, p2 = vtz.read(out)
+    assert np.abs(d.astype(int) - a.astype(int)).max() <= 2
+    assert p2["crs"] == prof["crs"] == "EPSG:32611"
+    assert tuple(p2["transform"])[:6] == tuple(prof["transform"])[:6]
+    assert p2["nodata"] == prof["nodata"] and p2["driver"] == "VTZ"
+    tif = tmp_path / "t.tif"
+    vtz.write(tif, d, p2)
+    d3, p3 = vtz.read(tif)
+    assert np.array_equal(d3, d) and p3["crs"] == "EPSG:32611"
+    if shutil.which("gdalinfo"):
+        txt = subprocess.run(["gdalinfo", str(tif)], capture_output=True, text=True).stdout
+        assert "32611" in txt and "376313.655" in txt and "NoData Value=32767" in txt, txt
+    else:
+        print("SKIPPED (gdalinfo not found): GDAL's reading of the written GeoTIFF")
+    with pytest.raises(vtz.InvalidArgumentError, match="exists"):
+        vtz.write(tif, d, p2, overwrite=False)
+
+
+def test_profile_with_a_rasterio_like_crs_object(tmp_path):
+    class FakeCRS:  # what rasterio.crs.CRS offers
+        def to_epsg(self):
+            return 32633
+
+        def to_wkt(self):
+            return 'PROJCS["WGS 84 / UTM zone 33N"]'
+
+    a = terrain(16, 16, np.float32)
+    prof = {"crs": FakeCRS(), "transform": (2.0, 0.0, 500000.0, 0.0, -2.0, 5000000.0, 0, 0, 1)}
+    vtz.write(tmp_path / "f.vtz", a, prof)
+    _, p = vtz.read(tmp_path / "f.vtz")
+    assert p["crs"] == "EPSG:32633"
+    assert tuple(p["transform"])[:6] == (2.0, 0.0, 500000.0, 0.0, -2.0, 5000000.0)
+
+
+def test_every_proper_prefix_and_a_flipped_byte_are_corrupt():
+    a = terrain(12, 9, np.int16)
+    b = vtz.encode(a, max_error=1)
+    for n in range(len(b)):
+        with pytest.raises(vtz.CorruptError):
+            vtz.decode(b[:n])
+    for pos in [len(b) // 2, len(b) - 3]:
+        bad = bytearray(b)
+        bad[pos] ^= 0x40
+        with pytest.raises(vtz.CorruptError):
+            vtz.decode(bytes(bad))
+    assert issubclass(vtz.CorruptError, ValueError)
+    assert issubclass(vtz.VtzIOError, OSError)
+
+
+@pytest.mark.parametrize(
+    "bad, exc, words",
+    [
+        (np.zeros((4, 6), np.float32)[:, ::2], vtz.InvalidArgumentError, "C-contiguous"),
+        (np.zeros((4, 4), ">f4"), vtz.DtypeError, "big-endian"),
+        (np.zeros((2, 4, 4), np.int16), vtz.InvalidArgumentError, "3-D"),
+        (np.zeros((4, 4), np.complex64), vtz.DtypeError, "complex"),
+        (np.zeros((4, 4), np.int64), vtz.DtypeError, "int64"),
+        (np.zeros((4, 4), bool), vtz.DtypeError, "bool"),
+        (np.zeros(5, np.int16), vtz.InvalidArgumentError, "1-D"),
+        (np.zeros((0, 4), np.int16), vtz.InvalidArgumentError, "empty"),
+    ],
+)
+def test_bad_arrays_raise_clear_errors(bad, exc, words):
+    with pytest.raises(exc, match=words):
+        vtz.encode(bad)
+
+
+def test_bad_arguments_raise_clear_errors(tmp_path):
+    a = terrain(8, 8, np.float32)
+    nan = a.copy()
+    nan[0, 0] = np.nan
+    with pytest.raises(vtz.InvalidArgumentError, match="NaN but nodata"):
+        vtz.encode(nan, nodata=-9999)
+    with pytest.raises(vtz.InvalidArgumentError, match="exclude"):
+        vtz.encode(a, max_error=1, lossless=True)
+    with pytest.raises(vtz.InvalidArgumentError, match="max_error"):
+        vtz.encode(a, max_error=-1)
+    with pytest.raises(TypeError):
+        vtz.encode(a, max_error=[1])
+    with pytest.raises(vtz.InvalidArgumentError, match="unknown method"):
+        vtz.encode(a, method="jpeg")
+    with pytest.raises(vtz.InvalidArgumentError, match="not a value of dtype"):
+        vtz.encode(terrain(8, 8, np.uint8), nodata=-1)
+    b = vtz.encode(a)
+    with pytest.raises(vtz.InvalidArgumentError):
+        vtz.decode(b, window=(4, 4, 10, 10))
+    with pytest.raises(vtz.InvalidArgumentError):
+        vtz.decode(b, scale="zero")
+    with pytest.raises(TypeError):
+        vtz.decode("not bytes")
+    with pytest.raises(vtz.CorruptError):
+        vtz.decode(b"hello world, not a vtz stream")
+    with pytest.raises(vtz.VtzIOError):
+        vtz.read(tmp_path / "missing.vtz")
+    with pytest.raises(vtz.VtzIOError):
+        vtz.write(tmp_path / "no" / "such" / "dir.vtz", a)
+    with pytest.raises(vtz.InvalidArgumentError, match="max_error applies"):
+        vtz.write(tmp_path / "x.tif", a, max_error=1)
+
+
+def test_the_gil_is_released_while_encoding():
+    """Another Python thread runs while a large encode is under way."""
+    a = terrain(700, 700, np.float32)
+    state = {"started": False, "done": False}
+
+    def work():
+        state["started"] = True
+        vtz.encode(a, max_error=0.1, threads=1)
+        state["done"] = True
+
+    t = threading.Thread(target=work)
+    t.start()
+    while not state["started"]:
+        pass
+    spins = 0
+    while not state["done"]:
+        spins += 1
+    t.join()
+    # Holding the GIL for the whole encode would leave this loop a few switch intervals.
+    assert spins > 10_000, spins
+
+
+def test_bytes_are_the_same_for_every_thread_count():
+    a = terrain(120, 90, np.float32)
+    assert vtz.encode(a, max_error=0.5, threads=1) == vtz.encode(a, max_error=0.5, threads=2)
+    b = vtz.encode(a, max_error=0.5)
+    assert np.array_equal(vtz.decode(b, threads=1), vtz.decode(b, threads=2))
