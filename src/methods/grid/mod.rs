@@ -81,6 +81,11 @@ impl Dequant {
 /// Try integer coding with `step`/`offset`: codes chosen so that every valid sample's
 /// reconstruction is within `tol` of it (exact when `tol` is 0). `None` when impossible.
 fn int_codes(r: &Raster, dq: Dequant, tol: f64) -> Option<Vec<i64>> {
+    // The physical values an integer source type can hold.
+    let range = r.sample_type.int_range().map(|(a, b)| {
+        let (x, y) = (r.mapping.to_value(a), r.mapping.to_value(b));
+        (x.min(y), x.max(y))
+    });
     let mut codes = vec![0i64; r.len()];
     for (i, &v) in r.data.iter().enumerate() {
         if !r.is_valid(i) {
@@ -91,10 +96,12 @@ fn int_codes(r: &Raster, dq: Dequant, tol: f64) -> Option<Vec<i64>> {
             return None;
         }
         let q = q as i64;
-        // Closed loop: take the first candidate whose reconstruction meets the bound.
-        let ok = [q, q - 1, q + 1]
-            .into_iter()
-            .find(|&c| dq.value(c).is_some_and(|rv| (rv - v).abs() <= tol))?;
+        // Closed loop: take the first candidate whose reconstruction meets the bound and
+        // that the source's type can hold (255 with a step of 13 must not decode as 260).
+        let ok = [q, q - 1, q + 1].into_iter().find(|&c| {
+            dq.value(c)
+                .is_some_and(|rv| (rv - v).abs() <= tol && range.is_none_or(|(lo, hi)| rv >= lo && rv <= hi))
+        })?;
         codes[i] = ok;
     }
     Some(codes)
