@@ -259,3 +259,25 @@ fn integer_extremes_decode_inside_the_type() {
         }
     }
 }
+
+/// `Decoder::max_error` reads the bound each method stored, without decoding: the encoder's
+/// report, 0 for lossless.
+#[test]
+fn decoder_reports_the_stored_bound() {
+    let r = crater();
+    for (m, e) in [
+        (Method::GRID, 0.0),
+        (Method::GRID, 3.0),
+        (Method::HAAR, 3.0),
+        (Method::SIBSON, 9.0),
+        (Method::FIS, 95.0),
+        (Method::RESIDUAL, 2.0),
+    ] {
+        let b = if e == 0.0 { None } else { Some(ErrorBound::Abs(e)) };
+        let (bytes, rep) = vtz::encode_report(&r, &encode_opts(&[m], b)).unwrap();
+        let mut dec = vtz::Decoder::new(std::io::Cursor::new(&bytes)).unwrap();
+        let stored = dec.max_error().unwrap();
+        assert_eq!(stored, rep.max_error, "{}", m.name());
+        assert!(stored <= e, "{}: {stored} > {e}", m.name());
+    }
+}

@@ -13,8 +13,9 @@ use numpy::{
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList, PyTuple, PyType};
+use std::cell::RefCell;
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex, OnceLock};
+use std::rc::Rc;
 use vtz::{
     DecodeOptions, EncodeOptions, Error, ErrorBound, Georef, Method, Raster, RasterType,
     SampleType, Scale, SectionChoice, Window,
@@ -47,34 +48,31 @@ fn invalid(py: Python<'_>, msg: impl Into<String>) -> PyErr {
     to_py(py, Error::invalid(msg))
 }
 
-/// Run `f` on a rayon pool of `threads` threads (0 = the global pool, all cores). Pools are
-/// kept per size, so a codec called once per chunk does not start threads each time.
+/// Run `f` on a rayon pool of `threads` threads (0 = the global pool, all cores). Each
+/// calling thread keeps its own pools, one per size: a codec called once per chunk from a
+/// store's thread pool starts no threads per chunk, and chunks encoded on different threads
+/// run side by side (one shared pool of 1 would run them one after another).
 fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> vtz::Result<T> {
     if threads == 0 {
         return Ok(f());
     }
-    static POOLS: OnceLock<Mutex<HashMap<usize, Arc<rayon::ThreadPool>>>> = OnceLock::new();
-    let pool = {
-        let mut pools = POOLS
-            .get_or_init(Default::default)
-            .lock()
-            .unwrap_or_else(|p| p.into_inner());
-        match pools.get(&threads) {
-            Some(p) => p.clone(),
-            None => {
-                let p = Arc::new(
-                    rayon::ThreadPoolBuilder::new()
-                        .num_threads(threads)
-                        .build()
-                        .map_err(|e| {
-                            Error::invalid(format!("cannot start {threads} threads: {e}"))
-                        })?,
-                );
-                pools.insert(threads, p.clone());
-                p
-            }
+    thread_local! {
+        static POOLS: RefCell<HashMap<usize, Rc<rayon::ThreadPool>>> = RefCell::new(HashMap::new());
+    }
+    let pool = POOLS.with(|p| -> vtz::Result<Rc<rayon::ThreadPool>> {
+        let mut pools = p.borrow_mut();
+        if let Some(pool) = pools.get(&threads) {
+            return Ok(pool.clone());
         }
-    };
+        let pool = Rc::new(
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .map_err(|e| Error::invalid(format!("cannot start {threads} threads: {e}")))?,
+        );
+        pools.insert(threads, pool.clone());
+        Ok(pool)
+    })?;
     Ok(pool.install(f))
 }
 
@@ -398,24 +396,8 @@ fn info<'py>(py: Python<'py>, data: &Bound<'py, PyBytes>) -> PyResult<Bound<'py,
         sections.append(e)?;
     }
     d.set_item("sections", sections)?;
-    // The bound the file guarantees: a tiled file's worst tile; else the primary method's
-    // stored max error, when it keeps one (None otherwise).
-    let max_error = match &fi.tiles {
-        Some(t) => Some(t.tiles.iter().map(|e| e.max_error).fold(0.0, f64::max)),
-        None => {
-            let stats = py.detach(|| dec.stats()).map_err(|e| to_py(py, e))?;
-            let method = primary.and_then(|s| s.method);
-            stats
-                .iter()
-                .find(|s| Some(s.method) == method)
-                .and_then(|s| {
-                    s.values.iter().find_map(|(k, v)| match (k, v) {
-                        (&"max_error", vtz::StatValue::Number(x)) => Some(*x),
-                        _ => None,
-                    })
-                })
-        }
-    };
+    // The bound the file guarantees (0 = lossless), read without decoding.
+    let max_error = py.detach(|| dec.max_error()).map_err(|e| to_py(py, e))?;
     d.set_item("max_error", max_error)?;
     match &fi.tiles {
         Some(t) => {

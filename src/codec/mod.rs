@@ -456,6 +456,36 @@ impl<R: Read + Seek> Decoder<R> {
         })
     }
 
+    /// The max error the file guarantees on every valid sample (0 = lossless), read from
+    /// the primary section's stored bound without decoding it (a tiled file: its worst
+    /// tile's, from the index). Reads one section; the statistics ([`Decoder::stats`])
+    /// decode it.
+    pub fn max_error(&mut self) -> Result<f64> {
+        match &mut self.rd {
+            Opened::Tiled(r) => Ok(r.tiles().iter().map(|t| t.max_error).fold(0.0, f64::max)),
+            Opened::Untiled(rd) => {
+                let idx = rd.header().primary as usize;
+                let kind = rd
+                    .entries()
+                    .get(idx)
+                    .ok_or_else(|| Error::corrupt(format!("no primary section {idx}")))?
+                    .kind;
+                let m = methods::by_section(kind).ok_or_else(|| {
+                    Error::unsupported(format!("the primary section's type {}", kind.code()))
+                })?;
+                let payload = rd.read_section(idx)?;
+                let off = m.id().bound_at;
+                payload
+                    .get(off..off + 8)
+                    .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
+                    .filter(|b| b.is_finite() && *b >= 0.0)
+                    .ok_or_else(|| {
+                        Error::corrupt(format!("section {idx} has no valid stored max error"))
+                    })
+            }
+        }
+    }
+
     /// What the file holds.
     pub fn info(&self) -> &FileInfo {
         &self.info

@@ -224,8 +224,8 @@ def info(data: Union[bytes, bytearray, memoryview]) -> dict:
     """What a vtz stream holds, without decoding its samples.
 
     Returns a dict with ``width``, ``height``, ``dtype``, ``nodata``, ``range`` (min, max of
-    the valid samples), ``max_error`` (the guaranteed bound; 0 = lossless; None when the
-    method keeps no record), ``method``, ``sections``, ``tiles``, ``bytes``, ``crs`` and
+    the valid samples), ``max_error`` (the bound every valid sample is within; 0 = lossless; read
+    from the stream without decoding), ``method``, ``sections``, ``tiles``, ``bytes``, ``crs`` and
     ``transform`` (None without georeferencing).
     """
     d = _vtz.info(_bytes(data))

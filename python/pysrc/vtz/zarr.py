@@ -75,45 +75,6 @@ def _renamed(err: vtz.VtzError, where: str) -> vtz.VtzError:
     return type(err)(f"{where}: {err}")
 
 
-def _window(selection: Any, shape: tuple[int, ...]) -> tuple[tuple[int, int, int, int], tuple] | None:
-    """The vtz window covering ``selection`` of a chunk of ``shape``, if worth decoding alone.
-
-    Returns ``((x, y, width, height), rest)``, where ``rest`` indexes the window's samples
-    (reshaped to the chunk's number of axes) to give ``chunk[selection]``; or ``None``
-    when the selection is not a rectangle (steps, index arrays) or is the whole chunk.
-    """
-    if not isinstance(selection, tuple) or len(selection) != len(shape) or len(shape) == 0:
-        return None
-    plane = _plane_shape(shape)
-    lead = selection[:-2] if len(shape) >= 2 else ()
-    spans = []  # (start, stop) per plane axis
-    rest_tail = []
-    tail = selection[-2:] if len(shape) >= 2 else (slice(0, 1), selection[0])
-    for sel, n in zip(tail, plane):
-        if isinstance(sel, (int, np.integer)):
-            i = int(sel) + (n if sel < 0 else 0)
-            if not 0 <= i < n:
-                return None
-            spans.append((i, i + 1))
-            rest_tail.append(0)
-        elif isinstance(sel, slice):
-            start, stop, step = sel.indices(n)
-            if step != 1 or stop <= start:
-                return None
-            spans.append((start, stop))
-            rest_tail.append(slice(None))
-        else:
-            return None
-    (y0, y1), (x0, x1) = spans
-    if (y1 - y0, x1 - x0) == plane:
-        return None
-    if len(shape) == 1:
-        rest = (rest_tail[1],)
-    else:
-        rest = tuple(lead) + tuple(rest_tail)
-    return (x0, y0, x1 - x0, y1 - y0), rest
-
-
 @dataclass(frozen=True)
 class VtzCodec(ArrayBytesCodec, ArrayBytesCodecPartialDecodeMixin):
     """Zarr v3 array-to-bytes codec of vtz: error-bounded compression of elevation chunks.
@@ -141,10 +102,9 @@ class VtzCodec(ArrayBytesCodec, ArrayBytesCodecPartialDecodeMixin):
     -----
     With no other codec after it (``compressors=None``) zarr reads chunks through the
     codec's partial-decode entry, which knows each chunk's store key: a damaged chunk then
-    raises :class:`vtz.CorruptError` naming it (``chunk 'file:///data/dem.zarr/c/3/1': ...``),
-    and a read of part of a chunk decodes only the window it needs (bit-identical to the
-    full decode). Behind a bytes-to-bytes codec, or when zarr re-reads a chunk to merge a
-    partial write, zarr gives the codec only the chunk's shape and the message says so.
+    raises :class:`vtz.CorruptError` naming it (``chunk 'file:///data/dem.zarr/c/3/1': ...``).
+    Behind a bytes-to-bytes codec, or when zarr re-reads a chunk to merge a partial write,
+    zarr gives the codec only the chunk's shape and dtype, and the message says so.
     """
 
     is_fixed_size = False
@@ -306,32 +266,23 @@ class VtzCodec(ArrayBytesCodec, ArrayBytesCodecPartialDecodeMixin):
         """
         return await asyncio.to_thread(self._encode_sync, chunk_array, chunk_spec)
 
-    def _decode_bytes(
-        self,
-        data: bytes,
-        chunk_spec: ArraySpec,
-        where: str,
-        window: tuple[int, int, int, int] | None = None,
-    ) -> np.ndarray:
-        """Decode a stream (or a window of it); errors name the chunk by ``where``."""
+    def _decode_bytes(self, data: bytes, chunk_spec: ArraySpec, where: str) -> np.ndarray:
+        """Decode a stream as the 2-D plane of a chunk; errors name the chunk by ``where``.
+
+        The stream must hold a raster of the chunk's 2-D shape and dtype, else
+        ``vtz.CorruptError``: a sound stream that is not this array's chunk is damage to
+        the store too.
+        """
         plane = _plane_shape(chunk_spec.shape)
         dtype = _check_dtype(chunk_spec.dtype.to_native_dtype())
         try:
-            if window is None:
-                out = vtz.decode(data, threads=self.threads)
-            else:
-                out = vtz.decode(data, window=window, threads=self.threads)
+            out = vtz.decode(data, threads=self.threads)
         except vtz.VtzError as err:
             raise _renamed(err, where) from err
-        want = plane if window is None else (window[3], window[2])
-        if out.shape != want or out.dtype != dtype:
-            if window is None:
-                got = f"a {out.shape[0]}x{out.shape[1]} {out.dtype} raster"
-            else:
-                got = f"a {out.dtype} raster"
+        if out.shape != plane or out.dtype != dtype:
             raise vtz.CorruptError(
-                f"{where}: the stream holds {got}, the array's chunks are "
-                f"{plane[0]}x{plane[1]} {dtype}"
+                f"{where}: the stream holds a {out.shape[0]}x{out.shape[1]} {out.dtype} raster, "
+                f"the array's chunks are {plane[0]}x{plane[1]} {dtype}"
             )
         return out
 
@@ -370,8 +321,9 @@ class VtzCodec(ArrayBytesCodec, ArrayBytesCodecPartialDecodeMixin):
     ) -> NDBuffer | None:
         """Read one chunk from the store and decode the part ``selection`` asks for.
 
-        Zarr uses this entry when the vtz codec is the array's only codec. A rectangular
-        selection smaller than the chunk decodes only that window.
+        Zarr uses this entry when the vtz codec is the array's only codec; it is here for
+        the chunk's store key, which names the chunk in errors. The whole chunk is decoded
+        (a vtz window decode costs nearly as much at chunk sizes, which vtz does not tile).
 
         Parameters
         ----------
@@ -396,17 +348,8 @@ class VtzCodec(ArrayBytesCodec, ArrayBytesCodecPartialDecodeMixin):
         if chunk_bytes is None:
             return None
         where = _describe_chunk(byte_getter)
-        data = chunk_bytes.to_bytes()
-        win = _window(selection, chunk_spec.shape)
-        if win is None:
-            out = await asyncio.to_thread(self._decode_bytes, data, chunk_spec, where)
-            part = out.reshape(chunk_spec.shape)[selection]
-        else:
-            window, rest = win
-            out = await asyncio.to_thread(self._decode_bytes, data, chunk_spec, where, window)
-            lead = (1,) * (len(chunk_spec.shape) - 2)
-            part = out.reshape(lead + out.shape if len(chunk_spec.shape) >= 2 else out.shape[1:])
-            part = part[rest]
+        out = await asyncio.to_thread(self._decode_bytes, chunk_bytes.to_bytes(), chunk_spec, where)
+        part = out.reshape(chunk_spec.shape)[selection]
         return chunk_spec.prototype.nd_buffer.from_numpy_array(np.asarray(part))
 
 
