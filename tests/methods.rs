@@ -273,7 +273,11 @@ fn decoder_reports_the_stored_bound() {
         (Method::FIS, 95.0),
         (Method::RESIDUAL, 2.0),
     ] {
-        let b = if e == 0.0 { None } else { Some(ErrorBound::Abs(e)) };
+        let b = if e == 0.0 {
+            None
+        } else {
+            Some(ErrorBound::Abs(e))
+        };
         let (bytes, rep) = vtz::encode_report(&r, &encode_opts(&[m], b)).unwrap();
         let mut dec = vtz::Decoder::new(std::io::Cursor::new(&bytes)).unwrap();
         let stored = dec.max_error().unwrap();
