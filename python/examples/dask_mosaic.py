@@ -13,7 +13,8 @@ The pipeline a GIS user runs, end to end, timed:
 4. **Write.** ``Dataset.to_zarr`` writes a Zarr v3 store, chunks encoded in the workers by
    the array-to-bytes codec under test (``--codecs``):
 
-   - ``vtz``: ``vtz.zarr.VtzCodec(max_error=E, nodata=..., threads=1)``;
+   - ``vtz``: ``vtz.zarr.VtzCodec(max_error=E, nodata=..., threads=1)`` (method ``best``);
+   - ``vtz-residual``: the same with ``method="residual"`` (no trials of other methods);
    - ``lerc``: imagecodecs' numcodecs ``Lerc(level=E)``; ``lerc-zstd`` adds LERC's own zstd
      stage (``compression="zstd"``, as GDAL's LERC_ZSTD);
    - ``sz3``: SZ3 through ``pysz`` in absolute-error mode.
@@ -40,11 +41,14 @@ Nodata. vtz keeps nodata samples exact (``nodata=`` in its config). LERC and SZ3
 nodata in these adapters: a nodata value is coded like any sample, so it may come back
 changed and the check reports it (the benchmark tile has no voids).
 
-Example (the benchmark in ``benches/python``)::
+Examples: the benchmark in ``benches/python`` (README there), and a quick run on the
+small mosaic the test uses::
 
     python dask_mosaic.py --codecs vtz,lerc,lerc-zstd,sz3 --workers 1,2 \\
-        --max-error 1,0.5 --repeat 3 --out-dir /tmp/dask_mosaic \\
+        --max-error 1,0.5,2 --repeat 5 --out-dir /tmp/dask_mosaic \\
         --json dask_mosaic.json --md dask_mosaic.md
+    python dask_mosaic.py --source ../../corpus/srtm30m_bigtujunga_utm11.tif \\
+        --tile 400 --chunk 400 --repeat 1 --out-dir /tmp/dask_small
 """
 
 from __future__ import annotations
@@ -62,6 +66,7 @@ import struct
 import subprocess
 import sys
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterator
@@ -77,7 +82,7 @@ REPO = HERE.parent.parent
 DEFAULT_SOURCE = Path("/work/shared/corpus/extra/srtm1_N45E013_full.png")
 TEST_SOURCE = REPO / "corpus" / "srtm30m_bigtujunga_utm11.tif"
 VAR = "elevation"
-CODECS = ("vtz", "lerc", "lerc-zstd", "sz3")
+CODECS = ("vtz", "vtz-residual", "lerc", "lerc-zstd", "sz3")
 
 
 # ---------------------------------------------------------------------------------------
@@ -99,6 +104,7 @@ def srtm_png_to_geotiff(png: Path, tif: Path) -> Path:
     Returns ``tif``.
     """
     import rasterio
+    import rasterio.errors
     from rasterio.transform import from_origin
 
     m = _SRTM_NAME.search(png.name)
@@ -106,8 +112,10 @@ def srtm_png_to_geotiff(png: Path, tif: Path) -> Path:
         raise ValueError(f"{png.name}: no SRTM tile name (like N45E013) to georeference it")
     lat0 = int(m.group(2)) * (1 if m.group(1).upper() == "N" else -1)
     lon0 = int(m.group(4)) * (1 if m.group(3).upper() == "E" else -1)
-    with rasterio.open(png) as src:
-        raw = src.read(1)
+    with warnings.catch_warnings():   # the PNG has no georeferencing: that is expected
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(png) as src:
+            raw = src.read(1)
     if raw.dtype != np.uint16:
         raise ValueError(f"{png}: expected a 16-bit PNG, got {raw.dtype}")
     metres = (raw.astype(np.int32) - 32768).astype(np.int16)
@@ -346,6 +354,11 @@ def make_serializer(codec: str, max_error: float, nodata: float | None) -> Array
         import vtz.zarr
 
         return vtz.zarr.VtzCodec(max_error=max_error, nodata=nodata, threads=1)
+    if codec == "vtz-residual":
+        # The residual layer alone: what `best` picks on these chunks, without its trials.
+        import vtz.zarr
+
+        return vtz.zarr.VtzCodec(max_error=max_error, nodata=nodata, method="residual", threads=1)
     if codec == "lerc":
         return NumcodecsSerializer({"id": "imagecodecs_lerc", "level": max_error})
     if codec == "lerc-zstd":
@@ -368,7 +381,7 @@ def _warm_worker() -> str:
     import vtz.zarr  # noqa: F401
     import zarr  # noqa: F401
 
-    return os.getpid().__str__()
+    return str(os.getpid())
 
 
 @contextlib.contextmanager
@@ -422,13 +435,16 @@ def write_store(client, ds, store: Path, serializer: ArrayBytesCodec, chunk: int
 
     The elevation array gets ``serializer``, no bytes-to-bytes compressor, and ``nodata``
     as its Zarr fill value (the padding of partial edge chunks). Returns ``write_s`` (wall
-    seconds of ``to_zarr``) and, to tell a slow codec from a busy machine: ``task_s`` (the
-    summed compute time of the Dask tasks), ``busiest_s`` (the most any one worker
-    computed: the wall time the write could take with no overhead and no other load) and
-    ``worker_cpu_s`` (CPU seconds the worker processes got during the write),
-    ``cpu_split`` (those CPU seconds over the busiest worker's: the speedup the split of
-    the work allows when every worker has a core of its own, whatever else the machine
-    runs) and ``workers_used`` (how many workers computed tasks).
+    seconds of ``to_zarr``) and, to tell a slow codec from a busy machine:
+
+    - ``task_s``: the summed compute time of the Dask tasks;
+    - ``busiest_s``: the most any one worker computed (the wall time the write would take
+      with no overhead);
+    - ``worker_cpu_s``: the CPU seconds the worker processes got during the write;
+    - ``cpu_split``: those CPU seconds over the busiest worker's (the speedup the split of
+      the work allows when every worker has a core of its own, whatever else the machine
+      runs);
+    - ``workers_used``: how many workers computed tasks.
     """
     from dask.distributed import get_task_stream
 
@@ -546,6 +562,14 @@ def _versions() -> dict[str, str]:
     import importlib.metadata as md
 
     out = {"python": platform.python_version()}
+    try:   # which build of vtz: the native module's hash (the version stays 0.1.0 meanwhile)
+        import hashlib
+
+        import vtz._vtz as native
+
+        out["vtz_native_sha256"] = hashlib.sha256(Path(native.__file__).read_bytes()).hexdigest()[:16]
+    except (ImportError, OSError):
+        pass
     for p in ("vtz", "dask", "distributed", "xarray", "rioxarray", "rasterio", "zarr",
               "numcodecs", "imagecodecs", "pysz", "numpy"):
         try:
@@ -607,6 +631,7 @@ def summarize(runs: list[dict]) -> dict[str, list[dict]]:
             busiest_s=statistics.median(r["busiest_s"] for r in rs),
             worker_cpu_s=statistics.median(r["worker_cpu_s"] for r in rs),
             cpu_split=statistics.median(r["cpu_split"] for r in rs),
+            cores_used=statistics.median(r["worker_cpu_s"] / r["write_s"] for r in rs),
             load_1min=statistics.median(r["load_1min"] for r in rs),
             max_error=max(r["max_error"] for r in rs),
             nodata_mismatch=max(r["nodata_mismatch"] for r in rs),
@@ -686,13 +711,15 @@ def markdown(summary: dict, meta: dict) -> str:
             "workers, the busiest worker's, CPU seconds the worker processes got, and the "
             "machine's 1-minute load average when the write started.", "",
             "| codec | bound | workers | write s | task s | busiest worker s | worker CPU s | "
-            "CPU split | load |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+            "CPU split | cores used | load |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in summary["rows"]:
         out.append(f"| {r['codec']} | {r['bound']:g} | {r['workers']} | {r['write_s']:.2f} | "
                    f"{r['task_s']:.2f} | {r['busiest_s']:.2f} | {r['worker_cpu_s']:.2f} | "
-                   f"{r['cpu_split']:.2f} | {r['load_1min']:.1f} |")
+                   f"{r['cpu_split']:.2f} | {r['cores_used']:.2f} | {r['load_1min']:.1f} |")
     out += ["", "CPU split: the workers' CPU seconds over the busiest worker's (the speedup "
-            "the division of the work allows when each worker has a core to itself)."]
+            "the division of the work allows when each worker has a core to itself). "
+            "Cores used: the workers' CPU seconds over the write's wall seconds (what the "
+            "workers got of the machine)."]
     if summary["ratios"]:
         out += ["", "Store size, vtz against the others at the same bound (array bytes; "
                 "< 1 means vtz is smaller):", "",
@@ -725,7 +752,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--keep-stores", action="store_true", help="keep the Zarr stores")
     p.add_argument("--json", type=Path, help="write all runs and the summary as JSON")
     p.add_argument("--md", type=Path, help="write the Markdown report")
+    p.add_argument("--from-json", type=Path,
+                   help="only render the report of an earlier --json file (no benchmark)")
     a = p.parse_args(argv)
+
+    if a.from_json:
+        saved = json.loads(a.from_json.read_text())
+        md = markdown(summarize(saved["runs"]), saved["meta"])
+        print(md)
+        if a.md:
+            a.md.write_text(md)
+        return 0
 
     codecs = [c.strip() for c in a.codecs.split(",") if c.strip()]
     for c in codecs:
