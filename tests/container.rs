@@ -33,16 +33,19 @@ fn assert_bits_equal(a: &Raster, b: &Raster) {
     assert_eq!(a.mapping, b.mapping);
 }
 
-/// Whether a section of this type may be the primary one (any but the mask, metadata and
-/// gdal-metadata).
+/// Whether a section of this type may be the primary one (any but the mask, metadata,
+/// gdal-metadata and flat regions: the container rejects those as primary).
 fn can_be_primary(k: SectionKind) -> bool {
-    k != SectionKind::MASK && k != SectionKind::METADATA && k != SectionKind::GDAL_METADATA
+    k != SectionKind::MASK
+        && k != SectionKind::METADATA
+        && k != SectionKind::GDAL_METADATA
+        && k != SectionKind::FLAT
 }
 
 /// Whether this version knows the type: mask, grid, sites, fis, haar, residual, metadata,
-/// gdal-metadata.
+/// gdal-metadata, flat regions.
 fn is_known(k: SectionKind) -> bool {
-    (1..=8).contains(&k.code())
+    (1..=9).contains(&k.code())
 }
 
 /// The bytes every `.vtz` file starts with.
