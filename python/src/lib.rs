@@ -359,10 +359,6 @@ fn georef_dict<'py>(py: Python<'py>, g: &Georef) -> PyResult<Bound<'py, PyDict>>
     Ok(d)
 }
 
-fn range_tuple(r: Option<(f64, f64)>) -> Option<(f64, f64)> {
-    r
-}
-
 /// What a vtz stream holds, without decoding samples.
 #[pyfunction]
 fn info<'py>(py: Python<'py>, data: &Bound<'py, PyBytes>) -> PyResult<Bound<'py, PyDict>> {
@@ -374,7 +370,7 @@ fn info<'py>(py: Python<'py>, data: &Bound<'py, PyBytes>) -> PyResult<Bound<'py,
     d.set_item("height", fi.height)?;
     d.set_item("dtype", dtype_name(fi.sample_type))?;
     d.set_item("nodata", fi.nodata)?;
-    d.set_item("range", range_tuple(fi.range))?;
+    d.set_item("range", fi.range)?;
     d.set_item("bytes", fi.file_bytes)?;
     let primary = fi.sections.iter().find(|s| s.primary);
     d.set_item(

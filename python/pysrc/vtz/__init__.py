@@ -31,29 +31,14 @@ from ._errors import (
     VtzError,
     VtzIOError,
 )
-from . import _vtz
+from . import _errors, _vtz
 
 __version__ = _vtz.__version__
 
 #: The dtypes vtz codes (and gives back on decode).
 DTYPES = ("uint8", "int16", "uint16", "int32", "float32", "float64")
 
-__all__ = [
-    "encode",
-    "decode",
-    "info",
-    "read",
-    "write",
-    "DTYPES",
-    "VtzError",
-    "CorruptError",
-    "UnsupportedError",
-    "InvalidArgumentError",
-    "UnmetError",
-    "LimitError",
-    "VtzIOError",
-    "DtypeError",
-]
+__all__ = ["encode", "decode", "info", "read", "write", "DTYPES", *_errors.__all__]
 
 
 def _check_array(array: Any) -> np.ndarray:
