@@ -84,28 +84,27 @@ impl Error {
             source,
         }
     }
-    /// Prefix the description with where the error happened (e.g. a file name).
+    /// Prefix the description with where the error happened (e.g. a file name), unless it
+    /// already starts with that place (a reader that named its file itself): a message
+    /// names its file once.
     pub fn context(self, ctx: impl fmt::Display) -> Self {
+        let ctx = ctx.to_string();
+        let pre = |s: String| {
+            let named = s
+                .strip_prefix(ctx.as_str())
+                .is_some_and(|rest| rest.is_empty() || rest.starts_with(':'));
+            if named { s } else { format!("{ctx}: {s}") }
+        };
         match self {
             Error::Io { context, source } => Error::Io {
-                context: format!("{ctx}: {context}"),
+                context: pre(context),
                 source,
             },
-            Error::Corrupt { what } => Error::Corrupt {
-                what: format!("{ctx}: {what}"),
-            },
-            Error::Unsupported { what } => Error::Unsupported {
-                what: format!("{ctx}: {what}"),
-            },
-            Error::InvalidArgument { what } => Error::InvalidArgument {
-                what: format!("{ctx}: {what}"),
-            },
-            Error::LimitExceeded { what } => Error::LimitExceeded {
-                what: format!("{ctx}: {what}"),
-            },
-            Error::Unmet { what } => Error::Unmet {
-                what: format!("{ctx}: {what}"),
-            },
+            Error::Corrupt { what } => Error::Corrupt { what: pre(what) },
+            Error::Unsupported { what } => Error::Unsupported { what: pre(what) },
+            Error::InvalidArgument { what } => Error::InvalidArgument { what: pre(what) },
+            Error::LimitExceeded { what } => Error::LimitExceeded { what: pre(what) },
+            Error::Unmet { what } => Error::Unmet { what: pre(what) },
         }
     }
 }

@@ -84,13 +84,13 @@ fn layout_of_header(names: &[&str], line: u64) -> Result<(Layout, Vec<String>)> 
     let names: Vec<&str> = names.iter().map(|n| unquote(n)).collect();
     let find = |set: &[&str]| names.iter().position(|n| is_one_of(n, set));
     let Some(x) = find(&X_NAMES) else {
-        return Err(Error::invalid(format!(
+        return Err(Error::corrupt(format!(
             "line {line}: the header names no x column (one of {})",
             X_NAMES.join(", ")
         )));
     };
     let Some(y) = find(&Y_NAMES) else {
-        return Err(Error::invalid(format!(
+        return Err(Error::corrupt(format!(
             "line {line}: the header names no y column (one of {})",
             Y_NAMES.join(", ")
         )));
@@ -99,12 +99,12 @@ fn layout_of_header(names: &[&str], line: u64) -> Result<(Layout, Vec<String>)> 
     let mut values: Vec<usize> = z.into_iter().collect();
     values.extend((0..names.len()).filter(|&i| i != x && i != y && Some(i) != z));
     if values.is_empty() {
-        return Err(Error::invalid(format!(
+        return Err(Error::corrupt(format!(
             "line {line}: the header names no value column beside x and y"
         )));
     }
     if let Some(i) = values.iter().find(|&&i| names[i].is_empty()) {
-        return Err(Error::invalid(format!(
+        return Err(Error::corrupt(format!(
             "line {line}: column {} of the header has no name",
             i + 1
         )));
@@ -124,16 +124,16 @@ fn layout_of_header(names: &[&str], line: u64) -> Result<(Layout, Vec<String>)> 
 /// Parse one field of a row (1-based `column` for the message).
 fn number(s: &str, line: u64, column: usize) -> Result<f64> {
     if s.is_empty() {
-        return Err(Error::invalid(format!(
+        return Err(Error::corrupt(format!(
             "line {line}: column {column} is empty"
         )));
     }
     match s.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
-        Ok(_) => Err(Error::invalid(format!(
+        Ok(_) => Err(Error::corrupt(format!(
             "line {line}: '{s}' in column {column} is not a finite number"
         ))),
-        Err(_) => Err(Error::invalid(format!(
+        Err(_) => Err(Error::corrupt(format!(
             "line {line}: '{s}' in column {column} is not a number"
         ))),
     }
@@ -160,7 +160,7 @@ pub(super) fn read<R: BufRead>(mut r: R) -> Result<PointSet> {
             )));
         }
         let text = std::str::from_utf8(&buf)
-            .map_err(|_| Error::invalid(format!("line {line_no}: not UTF-8 text")))?;
+            .map_err(|_| Error::corrupt(format!("line {line_no}: not UTF-8 text")))?;
         let text = if line_no == 1 {
             text.trim_start_matches('\u{feff}')
         } else {
@@ -180,7 +180,7 @@ pub(super) fn read<R: BufRead>(mut r: R) -> Result<PointSet> {
                 let (lay, names) = if header {
                     layout_of_header(&fields, line_no)?
                 } else if fields.len() < 3 {
-                    return Err(Error::invalid(format!(
+                    return Err(Error::corrupt(format!(
                         "line {line_no}: {} fields; a point needs at least x, y and z",
                         fields.len()
                     )));
@@ -207,7 +207,7 @@ pub(super) fn read<R: BufRead>(mut r: R) -> Result<PointSet> {
         };
         sep.split(text, &mut fields);
         if fields.len() != lay.fields {
-            return Err(Error::invalid(format!(
+            return Err(Error::corrupt(format!(
                 "line {line_no}: {} fields, expected {}",
                 fields.len(),
                 lay.fields
@@ -381,9 +381,10 @@ mod tests {
         // A NaN on the first row is data, not a header.
         let e = err("nan 2 3\n");
         assert!(e.contains("line 1: 'nan'"), "{e}");
+        // A bad value is corrupt input (exit 1), not a usage error.
         assert!(matches!(
             parse("1 2 3\n4 5 x\n"),
-            Err(Error::InvalidArgument { .. })
+            Err(Error::Corrupt { .. })
         ));
         let bytes: &[u8] = b"1 2 3\n4 5 \xff\n";
         let e = read(bytes).unwrap_err().to_string();
