@@ -91,6 +91,33 @@ pub fn bits_per_sample(bytes: u64, samples: usize) -> f64 {
     8.0 * bytes as f64 / samples.max(1) as f64
 }
 
+/// A value for a data file (CSV columns): the shortest decimal of at most 15 significant
+/// digits that reads back to the same 15-digit value (`1404.4070000000002`, a lattice
+/// height `offset + step · code` computed in binary, prints `1404.407`; `84808.25` stays
+/// `84808.25`). 15 digits is what every binary64 value round-trips through as decimal text,
+/// so the difference from the stored binary value is below 1e-15 of it; whole numbers print
+/// whole and NaN/infinities as `NaN`/`inf`/`-inf`.
+pub fn decimal(x: f64) -> String {
+    if !x.is_finite() {
+        return format!("{x}");
+    }
+    if x == 0.0 {
+        return "0".into();
+    }
+    let s = format!("{x:.14e}");
+    let (m, e) = s.split_once('e').unwrap_or((&s, "0"));
+    let Ok(v) = format!("{m}e{e}").parse::<f64>() else {
+        return format!("{x}");
+    };
+    // Rust's `Display` / `LowerExp` are the shortest text that parses back to `v` exactly;
+    // exponents only where plain digits would run long.
+    if (1e-5..1e16).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 /// A number for people: the digits that matter and no more. Whole numbers print whole
 /// (`1579`, `-32768`); others keep 6 significant digits without trailing zeros (`0.0620`
 /// becomes `0.062`, `0.1916875000000001` becomes `0.191688`); tiny and huge magnitudes use
@@ -121,7 +148,30 @@ pub fn num(x: f64) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::num;
+    use super::{decimal, num};
+
+    #[test]
+    fn decimals_are_the_shortest_15_digit_text() {
+        assert_eq!(decimal(1404.4070000000002), "1404.407");
+        assert_eq!(decimal(2210.2290000000003), "2210.229");
+        assert_eq!(decimal(-1.0219999999999985), "-1.022");
+        assert_eq!(decimal(84808.25), "84808.25");
+        assert_eq!(decimal(-160.0 + 0.0008333333333333334), "-159.999166666667");
+        assert_eq!(decimal(1579.0), "1579");
+        assert_eq!(decimal(1e-300), "1e-300");
+        assert_eq!(decimal(-0.0), "0");
+        assert_eq!(decimal(f64::NAN), "NaN");
+        // Within 1e-15 of the value, always.
+        for x in [
+            1.0 / 3.0,
+            2.0f64.sqrt() * 1e7,
+            -123.456e-5,
+            6.431955092190876,
+        ] {
+            let back: f64 = decimal(x).parse().unwrap();
+            assert!((back - x).abs() <= 1e-15 * x.abs(), "{x}");
+        }
+    }
 
     #[test]
     fn numbers_print_with_the_digits_that_matter() {

@@ -2,6 +2,7 @@
 
 use crate::common::{self, Ui};
 use std::path::PathBuf;
+use vtz::metrics::decimal;
 use vtz::{Limits, Result};
 
 #[derive(clap::Args)]
@@ -38,12 +39,13 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
                     0.0
                 };
                 (
-                    (g.origin[0] + (col as f64 + half) * g.pixel_size[0]).to_string(),
-                    (g.origin[1] - (row as f64 + half) * g.pixel_size[1]).to_string(),
+                    decimal(g.origin[0] + (col as f64 + half) * g.pixel_size[0]),
+                    decimal(g.origin[1] - (row as f64 + half) * g.pixel_size[1]),
                 )
             }
             None => (col.to_string(), row.to_string()),
         };
+        let height = decimal(height);
         csv.push_str(&format!("{rank},{level},{col},{row},{x},{y},{height}\n"));
         rank += 1;
     }
