@@ -465,24 +465,23 @@ impl<R: Read + Seek> Decoder<R> {
             Opened::Tiled(r) => Ok(r.tiles().iter().map(|t| t.max_error).fold(0.0, f64::max)),
             Opened::Untiled(rd) => {
                 let idx = rd.header().primary as usize;
-                let kind = rd
-                    .entries()
-                    .get(idx)
-                    .ok_or_else(|| Error::corrupt(format!("no primary section {idx}")))?
-                    .kind;
-                let m = methods::by_section(kind).ok_or_else(|| {
-                    Error::unsupported(format!("the primary section's type {}", kind.code()))
-                })?;
-                let payload = rd.read_section(idx)?;
-                let off = m.id().bound_at;
-                payload
-                    .get(off..off + 8)
-                    .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
-                    .filter(|b| b.is_finite() && *b >= 0.0)
-                    .ok_or_else(|| {
-                        Error::corrupt(format!("section {idx} has no valid stored max error"))
-                    })
+                stored_bound(rd, idx)?.ok_or_else(|| {
+                    Error::unsupported(format!("the primary section {idx} is not a method's"))
+                })
             }
+        }
+    }
+
+    /// The max error each section guarantees, as stored in it (`None` for a section that is
+    /// not a method's: the mask, flat regions, metadata); read without decoding. A tiled
+    /// file's global sections hold no method (its tiles' bounds are in
+    /// [`FileInfo::tiles`]).
+    pub fn section_max_errors(&mut self) -> Result<Vec<Option<f64>>> {
+        match &mut self.rd {
+            Opened::Tiled(r) => Ok(vec![None; r.global().len()]),
+            Opened::Untiled(rd) => (0..rd.entries().len())
+                .map(|i| stored_bound(rd, i))
+                .collect(),
         }
     }
 
@@ -703,6 +702,27 @@ impl<R: Read + Seek> Decoder<R> {
         };
         f(&job).map(Some)
     }
+}
+
+/// The max error stored in section `idx` of an untiled file at its method's
+/// `Identity::bound_at`; `None` when the section is not a method's.
+fn stored_bound<R: Read + Seek>(rd: &mut ContainerReader<R>, idx: usize) -> Result<Option<f64>> {
+    let kind = rd
+        .entries()
+        .get(idx)
+        .ok_or_else(|| Error::corrupt(format!("no section {idx}")))?
+        .kind;
+    let Some(m) = methods::by_section(kind) else {
+        return Ok(None);
+    };
+    let payload = rd.read_section(idx)?;
+    let off = m.id().bound_at;
+    payload
+        .get(off..off + 8)
+        .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
+        .filter(|b| b.is_finite() && *b >= 0.0)
+        .map(Some)
+        .ok_or_else(|| Error::corrupt(format!("section {idx} has no valid stored max error")))
 }
 
 /// Read a file's header and directory without decoding samples.

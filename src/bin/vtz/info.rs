@@ -29,16 +29,25 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
     let h = &info;
     let samples = h.samples() as usize;
     let bps = vtz::metrics::bits_per_sample(info.file_bytes, samples);
+    // The bound the file guarantees, read from the sections without decoding them.
+    // `info` shows a damaged file's header too: a bound it cannot read is shown as such
+    // (`vtz verify` is the check).
+    let bounds = dec
+        .section_max_errors()
+        .unwrap_or_else(|_| vec![None; info.sections.len()]);
+    let max_error = dec.max_error();
     let sections: Vec<_> = info
         .sections
         .iter()
-        .map(|e| {
+        .zip(&bounds)
+        .map(|(e, b)| {
             serde_json::json!({
                 "index": e.index, "type": e.name, "code": e.code,
                 "required": e.required,
                 "primary": e.primary,
                 "offset": e.offset, "bytes": e.bytes,
                 "bits_per_sample": vtz::metrics::bits_per_sample(e.bytes, samples),
+                "max_error": b,
             })
         })
         .collect();
@@ -70,7 +79,9 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
             "samples": samples, "sample_type": h.sample_type.name(),
             "value_scale": h.mapping.scale, "value_offset": h.mapping.offset,
             "nodata": h.nodata, "min": h.range.map(|r| r.0), "max": h.range.map(|r| r.1),
-            "bits_per_sample": bps, "georef": georef, "sections": sections,
+            "bits_per_sample": bps, "max_error": max_error.as_ref().ok(),
+            "lossless": max_error.as_ref().ok().map(|&m| m == 0.0),
+            "georef": georef, "sections": sections,
             "version": if tiles.is_some() { 2 } else { 1 }, "tiles": tiles,
         });
         // One object per method with a section (grid has no statistics); the sibson
@@ -128,6 +139,21 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
     match h.nodata {
         Some(nd) => outln!("nodata        {}", num(nd)),
         None => outln!("nodata        none declared"),
+    }
+    let by = match &info.tiles {
+        Some(_) => "the worst tile's".to_string(),
+        None => info
+            .sections
+            .get(info.primary)
+            .map_or_else(String::new, |e| format!("the {} section's", e.name)),
+    };
+    match &max_error {
+        Ok(m) if *m == 0.0 => outln!("max error     0 (lossless)"),
+        Ok(m) => outln!(
+            "max error     {} on every valid sample ({by} stored bound)",
+            num(*m)
+        ),
+        Err(e) => outln!("max error     unreadable ({e})"),
     }
     match &h.georef {
         Some(g) => {
@@ -199,15 +225,16 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
         }
     }
     outln!("sections      {}", info.sections.len());
-    for e in &info.sections {
+    for (e, b) in info.sections.iter().zip(&bounds) {
         outln!(
-            "  [{}] {:<9} {:>10} bytes {:>8.4} bits/sample{}{}",
+            "  [{}] {:<9} {:>10} bytes {:>8.4} bits/sample{}{}{}",
             e.index,
             e.name,
             e.bytes,
             vtz::metrics::bits_per_sample(e.bytes, samples),
             if e.primary { "  primary" } else { "" },
-            if e.required { "  required" } else { "" }
+            if e.required { "  required" } else { "" },
+            b.map_or_else(String::new, |b| format!("  max error {}", num(b)))
         );
     }
     Ok(())
