@@ -240,14 +240,21 @@ pub fn write_terrain(
     let range = raster
         .valid_range()
         .ok_or_else(|| Error::invalid("the raster has no valid sample"))?;
-    let bound = req
-        .max_error
-        .unwrap_or(ErrorBound::PercentOfRange(1.0))
-        .absolute(Some(range));
+    let requested = req.max_error.unwrap_or(ErrorBound::PercentOfRange(1.0));
+    let mut bound = requested.absolute(Some(range));
     let heights = Heights::covering(range.0, range.1);
+    if range.0 == range.1 {
+        // One height everywhere: any bound is met by a flat tile (within half a height
+        // step of the one value), whatever a percent of the range 0 makes of the request.
+        bound = bound.max(heights.step());
+    }
     if !(bound.is_finite() && bound >= heights.step()) {
+        let what = match req.max_error {
+            Some(_) => format!("--max-error {bound}"),
+            None => format!("the default bound (1 % of the range: {bound})"),
+        };
         return Err(Error::invalid(format!(
-            "--max-error {bound} is finer than a quantized-mesh height step ({:.4}: the height \
+            "{what} is finer than a quantized-mesh height step ({:.4}: the height \
              range {}..{} in 32767 steps)",
             heights.step(),
             heights.min,
@@ -390,20 +397,18 @@ pub fn write_terrain(
         std::fs::write(&f, layer).map_err(|e| Error::io(f.display().to_string(), e))?;
         Ok(report)
     })();
-    match result {
-        Ok(report) => {
-            if dir.exists() {
-                std::fs::remove_dir_all(dir)
-                    .map_err(|e| Error::io(dir.display().to_string(), e))?;
-            }
-            std::fs::rename(&tmp, dir).map_err(|e| Error::io(dir.display().to_string(), e))?;
-            Ok(report)
+    let result = result.and_then(|report| {
+        if dir.exists() {
+            std::fs::remove_dir_all(dir).map_err(|e| Error::io(dir.display().to_string(), e))?;
         }
-        Err(e) => {
-            let _ = std::fs::remove_dir_all(&tmp);
-            Err(e)
-        }
+        std::fs::rename(&tmp, dir).map_err(|e| Error::io(dir.display().to_string(), e))?;
+        Ok(report)
+    });
+    if result.is_err() {
+        let _ = std::fs::remove_dir_all(&tmp);
     }
+    crate::formats::untrack(&tmp);
+    result
 }
 
 /// A new empty directory beside `dir` to build in.
@@ -422,7 +427,10 @@ fn temp_dir(dir: &Path) -> Result<PathBuf> {
             std::process::id()
         ));
         match std::fs::create_dir(&t) {
-            Ok(()) => return Ok(t),
+            Ok(()) => {
+                crate::formats::track(&t);
+                return Ok(t);
+            }
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
             Err(e) => return Err(Error::io(parent.display().to_string(), e)),
         }

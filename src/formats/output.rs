@@ -3,6 +3,39 @@
 use crate::error::{Error, Result};
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::{Mutex, MutexGuard};
+
+/// The temporaries this process is writing right now (files, and terrain directories),
+/// so that a command stopped by a signal can remove them ([`remove_temporaries`]).
+static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn live() -> MutexGuard<'static, Vec<PathBuf>> {
+    LIVE.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Note a temporary file or directory being written, until [`untrack`].
+pub(crate) fn track(p: &Path) {
+    live().push(p.to_path_buf());
+}
+
+/// The temporary `p` was renamed into place or removed.
+pub(crate) fn untrack(p: &Path) {
+    live().retain(|q| q != p);
+}
+
+/// Remove every temporary file or directory this process is writing (an output not yet
+/// renamed into place). For a Ctrl-C / SIGTERM handler: the command stops and leaves
+/// neither a half-written output nor a hidden temporary behind. Outputs already renamed
+/// into place are complete and stay.
+pub fn remove_temporaries() {
+    for p in live().drain(..) {
+        if p.is_dir() {
+            let _ = std::fs::remove_dir_all(&p);
+        } else {
+            let _ = std::fs::remove_file(&p);
+        }
+    }
+}
 
 /// One output file a writer produced (a format may need a sidecar).
 #[derive(Clone, Debug)]
@@ -41,10 +74,12 @@ pub fn write_files(files: &[OutputFile], force: bool) -> Result<()> {
     let cleanup = |temps: &[PathBuf]| {
         for t in temps {
             let _ = std::fs::remove_file(t);
+            untrack(t);
         }
     };
     for f in files {
         let tmp = temp_path(&f.path);
+        track(&tmp);
         let res = (|| -> std::io::Result<()> {
             let mut file = std::fs::File::create(&tmp)?;
             file.write_all(&f.bytes)?;
@@ -62,6 +97,7 @@ pub fn write_files(files: &[OutputFile], force: bool) -> Result<()> {
             cleanup(&temps);
             return Err(Error::io(format!("renaming into {}", f.path.display()), e));
         }
+        untrack(tmp);
     }
     Ok(())
 }
@@ -97,8 +133,11 @@ impl PendingFile {
             )));
         }
         let tmp = temp_path(path);
-        let file = std::fs::File::create(&tmp)
-            .map_err(|e| Error::io(format!("creating {}", tmp.display()), e))?;
+        track(&tmp);
+        let file = std::fs::File::create(&tmp).map_err(|e| {
+            untrack(&tmp);
+            Error::io(format!("creating {}", tmp.display()), e)
+        })?;
         Ok(PendingFile {
             path: path.to_path_buf(),
             tmp,
@@ -113,13 +152,19 @@ impl PendingFile {
     pub fn commit(mut self) -> Result<()> {
         let out = self.out.take().expect("present until commit");
         let ctx = format!("writing {}", self.path.display());
-        let file = out
+        let res = out
             .into_inner()
-            .map_err(|e| Error::io(&ctx, e.into_error()))?;
-        file.sync_all().map_err(|e| Error::io(&ctx, e))?;
-        drop(file);
-        std::fs::rename(&self.tmp, &self.path)
-            .map_err(|e| Error::io(format!("renaming into {}", self.path.display()), e))
+            .map_err(|e| Error::io(&ctx, e.into_error()))
+            .and_then(|file| file.sync_all().map_err(|e| Error::io(&ctx, e)))
+            .and_then(|()| {
+                std::fs::rename(&self.tmp, &self.path)
+                    .map_err(|e| Error::io(format!("renaming into {}", self.path.display()), e))
+            });
+        if res.is_err() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+        untrack(&self.tmp);
+        res
     }
 }
 
@@ -128,6 +173,7 @@ impl Drop for PendingFile {
         if self.out.is_some() {
             self.out = None;
             let _ = std::fs::remove_file(&self.tmp);
+            untrack(&self.tmp);
         }
     }
 }

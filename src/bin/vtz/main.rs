@@ -80,6 +80,13 @@ enum Cmd {
 }
 
 fn main() -> ExitCode {
+    // Ctrl-C or SIGTERM: remove the temporaries of outputs still being written (an output
+    // appears only by a rename once complete), then stop with 130 as a shell expects.
+    let _ = ctrlc::set_handler(|| {
+        vtz::formats::remove_temporaries();
+        eprintln!("vtz: interrupted; unfinished outputs removed");
+        std::process::exit(130);
+    });
     let cli = Cli::parse();
     let ui = common::Ui { quiet: cli.quiet };
     let res = match cli.cmd {
