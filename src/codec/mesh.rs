@@ -67,6 +67,34 @@ pub fn mesh_raster(raster: &Raster, req: &MeshRequest) -> Result<Mesh> {
             "--level needs a .vtz input with a sites section",
         ));
     }
+    if raster.width < 2 || raster.height < 2 {
+        // One row or column of samples has no area between sample centres: mesh the
+        // samples' cells instead (each sample repeated at its cell's two edges).
+        return mesh_raster(&cell_edges(raster), req);
+    }
+    if let (Select::Greedy, None, Some((lo, hi))) = (req.select, req.sites, raster.valid_range())
+        && lo == hi
+    {
+        // One height everywhere: the flat rectangle of two triangles is exact (any bound
+        // holds, including a percent of the range 0).
+        let (w, h) = (raster.width, raster.height);
+        let mut corners: Vec<Vertex> = [(0, 0), (w - 1, 0), (0, h - 1), (w - 1, h - 1)]
+            .into_iter()
+            .map(|(col, row)| Vertex {
+                col,
+                row,
+                height: lo,
+            })
+            .collect();
+        return finish(
+            &mut corners,
+            (w, h),
+            raster.georef.as_ref(),
+            Some(raster),
+            req,
+            None,
+        );
+    }
     let mut bound = None;
     let mut vertices = match req.select {
         Select::Greedy => {
@@ -123,6 +151,32 @@ pub fn mesh_raster(raster: &Raster, req: &MeshRequest) -> Result<Mesh> {
         req,
         bound,
     )
+}
+
+/// A raster of one row or column as two, each sample repeated at its cell's two edges:
+/// sample centres half a pixel before and after the originals, so the mesh covers the
+/// samples' cells (a 1 × 1 raster becomes its pixel's flat square).
+fn cell_edges(r: &Raster) -> Raster {
+    let (w2, h2) = (r.width.max(2), r.height.max(2));
+    let (sx, sy) = (usize::from(r.width < 2), usize::from(r.height < 2));
+    let mut out = r.clone();
+    out.width = w2;
+    out.height = h2;
+    out.data = (0..w2 * h2)
+        .map(|i| r.data[(i / w2) / (1 + sy) * r.width + (i % w2) / (1 + sx)])
+        .collect();
+    out.mask = r.mask.as_ref().map(|m| {
+        (0..w2 * h2)
+            .map(|i| m[(i / w2) / (1 + sy) * r.width + (i % w2) / (1 + sx)])
+            .collect()
+    });
+    if let Some(g) = out.georef.as_mut() {
+        // The new centres sit on the old cell's edges: half a pixel west / north of the
+        // old centres, one old pixel apart.
+        g.origin[0] -= 0.5 * g.pixel_size[0] * sx as f64;
+        g.origin[1] += 0.5 * g.pixel_size[1] * sy as f64;
+    }
+    out
 }
 
 /// The mesh of a `.vtz`: its stored sites (a prefix with `req.sites` / `req.levels`) when
