@@ -119,22 +119,36 @@ pub(crate) fn encode_parts(
         // `best`: the methods that can meet the request, shortlisted by a trial on sample
         // tiles (large rasters only), each encoded in full; the smallest wins.
         let runs = best_runs(raster, opts, e);
-        let short = if raster.len() > EXHAUSTIVE_MAX_SAMPLES && runs.len() > 1 {
-            shortlist(&runs, raster, opts, &mut |f| progress(ESTIMATE_SHARE * f))?
+        // The bar's shares follow each stage's expected time (`relative_cost`): the trial
+        // against at least the cheapest full encode, then the full encodes.
+        let trial = raster.len() > EXHAUSTIVE_MAX_SAMPLES && runs.len() > 1;
+        let share = if trial {
+            let tiles = (TRIAL_TILE * TRIAL_TILE * TRIAL_TILES[0] * TRIAL_TILES[1]) as f64;
+            let t: f64 = runs.iter().map(|(m, _)| m.relative_cost()).sum::<f64>() * tiles;
+            let cheapest = runs
+                .iter()
+                .map(|(m, _)| m.relative_cost())
+                .fold(f64::INFINITY, f64::min);
+            t / (t + cheapest * raster.len() as f64)
+        } else {
+            0.0
+        };
+        let short = if trial {
+            shortlist(&runs, raster, opts, &mut |f| progress(share * f))?
         } else {
             runs
         };
-        let n = short.len();
+        let costs: Vec<f64> = short.iter().map(|(m, _)| m.relative_cost()).collect();
+        let total: f64 = costs.iter().sum();
         let mut last_err = None;
         for (i, &(m, e)) in short.iter().enumerate() {
             if !encoded.iter().any(|x| x.name() == m.name()) {
                 encoded.push(Method(m));
             }
+            let before: f64 = costs[..i].iter().sum();
             let mut p = |f: f64| {
-                progress(
-                    ESTIMATE_SHARE
-                        + (1.0 - ESTIMATE_SHARE) * (i as f64 + f.clamp(0.0, 1.0)) / n as f64,
-                )
+                let f = f.clamp(0.0, 1.0);
+                progress(share + (1.0 - share) * (before + costs[i] * f) / total)
             };
             match encode_method(m, raster, &header, opts, e, flat, &mut p) {
                 Ok(c) => cands.push(c),
@@ -251,8 +265,6 @@ const TRIAL_MARGIN: f64 = 1.15;
 /// Measured: Monterey Bay at 10 % of the range, where the tiles put FIS (722 bytes) ahead
 /// of the sites (467 bytes in full).
 const TRIAL_LOW_RATE: f64 = 0.25;
-/// The share of the progress bar the trial takes.
-const ESTIMATE_SHARE: f64 = 0.1;
 
 /// What `best` may try: (method, the bound it is asked for). Settings only one method reads
 /// (a site count, an RMSE) name that method alone; a lossless request, the lossless
@@ -323,16 +335,15 @@ fn shortlist(
     if tiles.is_empty() {
         return Ok(runs.to_vec());
     }
-    let total = (runs.len() * tiles.len()) as f64;
+    let total = runs.iter().map(|(m, _)| m.relative_cost()).sum::<f64>() * tiles.len() as f64;
     let mut done = 0.0;
     let mut sizes: Vec<Option<usize>> = Vec::with_capacity(runs.len());
     for &(m, e) in runs {
         let mut sum = Some(0usize);
-        for t in &tiles {
+        for (k, t) in tiles.iter().enumerate() {
             let h = Header::of(t)?;
             let r = encode_method(m, t, &h, opts, e, None, &mut |_| {});
-            done += 1.0;
-            progress(done / total);
+            progress((done + m.relative_cost() * (k + 1) as f64) / total);
             match r {
                 Ok(c) => *sum.as_mut().expect("still a candidate") += c.enc.payload.len(),
                 Err(_) => {
@@ -341,6 +352,8 @@ fn shortlist(
                 }
             }
         }
+        done += m.relative_cost() * tiles.len() as f64;
+        progress(done / total);
         sizes.push(sum);
     }
     let Some(min) = sizes.iter().flatten().copied().min() else {

@@ -21,6 +21,11 @@ impl Representation for Grid {
     fn lossless_default(&self) -> bool {
         true
     }
+    fn relative_cost(&self) -> f64 {
+        // Kauai 1201², one thread, 1 m / 1 %: 0.45 / 0.38 s
+        // against the residual layer's 1.22 / 0.87 s.
+        0.4
+    }
     fn encode(&self, job: &EncodeJob, _progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
         let (payload, bound) = encode(
             job.raster,

@@ -47,6 +47,11 @@ impl Representation for Haar {
             set: |p, q| p.haar.step = Some(q),
         })
     }
+    fn relative_cost(&self) -> f64 {
+        // Kauai 1201², one thread, 1 m / 1 %: 2.27 / 2.38 s
+        // against the residual layer's 1.22 / 0.87 s.
+        2.2
+    }
     fn encode(&self, job: &EncodeJob, progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
         let (payload, bound) = match job.params.haar.step {
             Some(step) => encode_step(job.raster, step)?,

@@ -26,13 +26,14 @@ impl Representation for Residual {
     fn lossless_default(&self) -> bool {
         true
     }
-    fn encode(&self, job: &EncodeJob, _progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
+    fn encode(&self, job: &EncodeJob, progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
         let (payload, bound) = encode(
             job.raster,
             job.header,
             job.max_error.unwrap_or(0.0),
             job.flat,
             job.effort,
+            progress,
         )?;
         Ok((payload, bound).into())
     }

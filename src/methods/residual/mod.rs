@@ -93,6 +93,7 @@ pub(crate) fn encode(
     e: f64,
     fixed: Option<&[f64]>,
     effort: u8,
+    progress: &mut dyn FnMut(f64),
 ) -> Result<(Vec<u8>, f64)> {
     if !(e >= 0.0 && e.is_finite()) {
         return Err(Error::invalid(format!(
@@ -134,7 +135,9 @@ pub(crate) fn encode(
             }
         }
         let mut best: Option<Vec<u8>> = None;
-        for pred in preds(setup.bin) {
+        let tries = preds(setup.bin);
+        let n = tries.len();
+        for (t, pred) in tries.into_iter().enumerate() {
             let p = Plane {
                 width: w,
                 height: h,
@@ -163,6 +166,9 @@ pub(crate) fn encode(
                 best = None;
                 break;
             }
+            // Each predictor is one full coding pass: the progress counts them (a second,
+            // margin pass is rare and starts over within the last share).
+            progress((t + 1) as f64 / n as f64);
             let mut payload = payload;
             payload[32..40].copy_from_slice(&errs.max.to_le_bytes());
             if best.as_ref().is_none_or(|b| payload.len() < b.len()) {
