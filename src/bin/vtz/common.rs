@@ -255,17 +255,25 @@ pub fn check_output(input: &Path, output: &Path, force: bool) -> Result<()> {
             output.display()
         )));
     }
+    check_parent(output)
+}
+
+/// The directory an output goes into exists and takes new files (probed with a file
+/// created and removed at once).
+fn check_parent(output: &Path) -> Result<()> {
     let dir = match output.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
     if !dir.is_dir() {
+        let (kind, why) = if dir.exists() {
+            (std::io::ErrorKind::NotADirectory, "is not a directory")
+        } else {
+            (std::io::ErrorKind::NotFound, "does not exist")
+        };
         return Err(Error::io(
             format!("output {}", output.display()),
-            std::io::Error::new(
-                std::io::ErrorKind::NotFound,
-                format!("the directory {} does not exist", dir.display()),
-            ),
+            std::io::Error::new(kind, format!("{} {why}", dir.display())),
         ));
     }
     let probe = dir.join(format!(".vtz-probe-{}", std::process::id()));
@@ -276,6 +284,28 @@ pub fn check_output(input: &Path, output: &Path, force: bool) -> Result<()> {
         .map_err(|e| Error::io(format!("cannot write in {}", dir.display()), e))?;
     let _ = std::fs::remove_file(&probe);
     Ok(())
+}
+
+/// [`check_output`] for an output directory (`vtz tiles`): not the input, its parent
+/// exists and takes new entries, and an existing one is replaced only with `--force` and
+/// only when it holds `marker` (what a previous run wrote there).
+pub fn check_output_dir(input: &Path, output: &Path, force: bool, marker: &str) -> Result<()> {
+    check_distinct(input, output)?;
+    if output.exists() {
+        if !force {
+            return Err(Error::invalid(format!(
+                "{} exists (use --force to replace it)",
+                output.display()
+            )));
+        }
+        if !output.join(marker).is_file() {
+            return Err(Error::invalid(format!(
+                "{} exists and holds no {marker}: not replacing it",
+                output.display()
+            )));
+        }
+    }
+    check_parent(output)
 }
 
 /// `IN.ext` → `IN.vtz`.

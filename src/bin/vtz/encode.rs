@@ -163,10 +163,26 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         ui.say(format!("note: no {} section: {why}", m.name()));
     }
     let raw = samples as u64 * info.sample_type.bits() as u64 / 8;
+    // What any file pays whatever its samples: header, directory, checksums,
+    // georeferencing and a method's own header (177 bytes for a georeferenced 1 × 1 raster).
+    const FRAMING: u64 = 512;
     if n > raw && !a.json {
-        ui.say(format!(
-            "warning: {n} bytes is more than the raw samples ({raw} bytes); --lossless or another --method may store this raster smaller"
-        ));
+        if n <= raw + FRAMING {
+            // Nothing to suggest: no method or bound makes so few samples smaller.
+            ui.say(format!(
+                "note: {n} bytes is more than the raw samples ({raw} bytes): the header, \
+                 directory and checksums outweigh so few samples"
+            ));
+        } else if report.max_error > 0.0 {
+            ui.say(format!(
+                "warning: {n} bytes is more than the raw samples ({raw} bytes); --lossless or another --method may store this raster smaller"
+            ));
+        } else {
+            ui.say(format!(
+                "warning: {n} bytes is more than the raw samples ({raw} bytes): these samples \
+                 do not compress losslessly"
+            ));
+        }
     }
     let bps = vtz::metrics::bits_per_sample(n, samples);
     let range = info.range.map_or(0.0, |(lo, hi)| hi - lo);

@@ -47,7 +47,7 @@ pub struct Args {
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let in_format = common::parse_format(a.format.as_deref())?;
-    common::check_distinct(&a.input, &a.output)?;
+    common::check_output_dir(&a.input, &a.output, a.force, "layer.json")?;
     let mut req = TerrainRequest::default();
     req.max_error = a.max_error.as_deref().map(ErrorBound::parse).transpose()?;
     req.max_zoom = a.max_zoom;
