@@ -33,7 +33,7 @@ fn to_py(py: Python<'_>, e: Error) -> PyErr {
         Error::LimitExceeded { .. } => "LimitError",
         _ => "VtzError",
     };
-    let msg = e.to_string();
+    let msg = python_words(&e.to_string());
     match py
         .import("vtz._errors")
         .and_then(|m| m.getattr(name))
@@ -42,6 +42,43 @@ fn to_py(py: Python<'_>, e: Error) -> PyErr {
         Ok(cls) => PyErr::from_type(cls, (msg,)),
         Err(err) => err,
     }
+}
+
+/// The library's messages name the command line's flags (`--scale`, `--max-error`); a
+/// Python caller reads its own keyword arguments instead (`scale=`, `max_error=`). Flags
+/// with no keyword in this package are left as they are.
+fn python_words(msg: &str) -> String {
+    const WORDS: [(&str, &str); 9] = [
+        ("--max-error", "max_error="),
+        ("--lossless", "lossless=True"),
+        ("--scale", "scale="),
+        ("--window", "window="),
+        ("--method", "method="),
+        ("--threads", "threads="),
+        ("--section", "section="),
+        ("--force", "overwrite=True"),
+        ("--nodata", "nodata="),
+    ];
+    let mut out = String::with_capacity(msg.len());
+    let mut rest = msg;
+    'scan: while let Some(i) = rest.find("--") {
+        out.push_str(&rest[..i]);
+        let tail = &rest[i..];
+        for (flag, word) in WORDS {
+            let whole = tail.strip_prefix(flag).is_some_and(|after| {
+                !after.starts_with(|c: char| c.is_ascii_alphanumeric() || c == '-')
+            });
+            if whole {
+                out.push_str(word);
+                rest = &tail[flag.len()..];
+                continue 'scan;
+            }
+        }
+        out.push_str("--");
+        rest = &tail[2..];
+    }
+    out.push_str(rest);
+    out
 }
 
 fn invalid(py: Python<'_>, msg: impl Into<String>) -> PyErr {
