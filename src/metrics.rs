@@ -95,7 +95,7 @@ pub fn bits_per_sample(bytes: u64, samples: usize) -> f64 {
 /// digits that reads back to the same 15-digit value (`1404.4070000000002`, a lattice
 /// height `offset + step · code` computed in binary, prints `1404.407`; `84808.25` stays
 /// `84808.25`). 15 digits is what every binary64 value round-trips through as decimal text,
-/// so the difference from the stored binary value is below 1e-15 of it; whole numbers print
+/// so the difference from the stored binary value is below 5e-15 of it; whole numbers print
 /// whole and NaN/infinities as `NaN`/`inf`/`-inf`.
 pub fn decimal(x: f64) -> String {
     if !x.is_finite() {
@@ -161,7 +161,7 @@ mod tests {
         assert_eq!(decimal(1e-300), "1e-300");
         assert_eq!(decimal(-0.0), "0");
         assert_eq!(decimal(f64::NAN), "NaN");
-        // Within 1e-15 of the value, always.
+        // Within half a unit of the 15th digit, always.
         for x in [
             1.0 / 3.0,
             2.0f64.sqrt() * 1e7,
@@ -169,7 +169,7 @@ mod tests {
             6.431955092190876,
         ] {
             let back: f64 = decimal(x).parse().unwrap();
-            assert!((back - x).abs() <= 1e-15 * x.abs(), "{x}");
+            assert!((back - x).abs() <= 5e-15 * x.abs(), "{x}");
         }
     }
 

@@ -206,7 +206,7 @@ fn tiny_rasters_are_not_told_to_try_lossless() {
 }
 
 /// `vtz sites` prints the shortest decimal of a lattice height, not its binary rounding
-/// (`2210.229`, not `2210.2290000000003`), and the values read back within 1e-15.
+/// (`2210.229`, not `2210.2290000000003`), and the values read back within 1e-12.
 #[test]
 fn sites_print_short_decimals() {
     let d = tempfile::tempdir().unwrap();
