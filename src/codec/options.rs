@@ -171,7 +171,7 @@ fn parse_decimal(t: &str) -> Option<(u128, u128)> {
     Some(if frac_len >= 0 {
         (m, p)
     } else {
-        (m.checked_mul(p).unwrap_or(u128::MAX), 1)
+        (m.saturating_mul(p), 1)
     })
 }
 
