@@ -589,7 +589,7 @@ fn a_window_a_resampling_or_a_lossy_encode_drops_the_sources_statistics() {
     let lossy = encode_opts(&[vtz::Method::GRID], Some(vtz::ErrorBound::Abs(2.0)));
     let back = vtz::decode(&vtz::encode(&r, &lossy).unwrap()).unwrap();
     assert_eq!(back.gdal_metadata.as_deref(), Some(META));
-    // Resampling needs a sites section: a small part, encoded by sibson.
+    // A resampling: a small part, encoded by sibson.
     let mut small = part;
     small.gdal_metadata = Some(with_stats);
     let opts = encode_opts(&[vtz::Method::SIBSON], Some(vtz::ErrorBound::Abs(5.0)));
