@@ -589,7 +589,7 @@ fn a_window_a_resampling_or_a_lossy_encode_drops_the_sources_statistics() {
     let lossy = encode_opts(&[vtz::Method::GRID], Some(vtz::ErrorBound::Abs(2.0)));
     let back = vtz::decode(&vtz::encode(&r, &lossy).unwrap()).unwrap();
     assert_eq!(back.gdal_metadata.as_deref(), Some(META));
-    // Resampling needs a sites section: a small part, encoded by sibson.
+    // A resampling: a small part, encoded by sibson.
     let mut small = part;
     small.gdal_metadata = Some(with_stats);
     let opts = encode_opts(&[vtz::Method::SIBSON], Some(vtz::ErrorBound::Abs(5.0)));
@@ -597,4 +597,57 @@ fn a_window_a_resampling_or_a_lossy_encode_drops_the_sources_statistics() {
     let half_scale = vtz::Scale { num: 1, den: 2 };
     let half = vtz::decode_with(&bytes, &decode_opts(|o| o.scale = Some(half_scale))).unwrap();
     assert_eq!(half.gdal_metadata.as_deref(), Some(META));
+}
+
+/// `--scale 2` is `gdal_translate -outsize 200% 200%`: twice the samples each way over the
+/// same extent, so the geotransform GDAL reads from the output is the source's with the
+/// pixel size halved from the same corner; for the pixel-is-point SRTM tile too, whose area
+/// pixels GDAL places half a sample beyond the points (vtz keeps the type and moves the
+/// first point to the new first pixel's centre).
+#[test]
+fn scale_2_keeps_the_corner_gdal_sees() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = |p: &Path| p.to_string_lossy().into_owned();
+    for (name, src) in sources(&dir) {
+        let packed = tmp(&dir, &format!("{name}_scale.vtz"));
+        ok(&vtz([
+            "encode",
+            &s(&src),
+            "-o",
+            &packed,
+            "--max-error",
+            "1",
+        ]));
+        let out = dir.path().join(format!("{name}_x2.tif"));
+        ok(&vtz(["decode", &packed, "-o", &s(&out), "--scale", "2"]));
+        let (a, b) = (read(&src), read(&out));
+        assert_eq!((b.width, b.height), (2 * a.width, 2 * a.height), "{name}");
+        // vtz's own reading: the same corner, half the pixel size, the same pixel type.
+        let corner = |g: &vtz::Georef| match g.raster_type {
+            vtz::RasterType::Area => g.origin,
+            vtz::RasterType::Point => [
+                g.origin[0] - g.pixel_size[0] / 2.0,
+                g.origin[1] + g.pixel_size[1] / 2.0,
+            ],
+        };
+        let (ga, gb) = (a.georef.as_ref().unwrap(), b.georef.as_ref().unwrap());
+        assert_eq!(ga.raster_type, gb.raster_type, "{name}");
+        assert_eq!(
+            gb.pixel_size,
+            [ga.pixel_size[0] / 2.0, ga.pixel_size[1] / 2.0]
+        );
+        for (u, v) in corner(ga).iter().zip(corner(gb)) {
+            assert!(
+                (u - v).abs() <= 1e-9 * u.abs().max(1.0),
+                "{name}: {ga:?} {gb:?}"
+            );
+        }
+        if !have_gdalinfo(&format!("{name} at --scale 2")) {
+            continue;
+        }
+        let (sa, sb) = (seen_direct(&src), seen_direct(&out));
+        let g = &sa.geotransform;
+        let want = [g[0], g[1] / 2.0, g[2], g[3], g[4], g[5] / 2.0];
+        assert_geotransform(&sb.geotransform, &want, name);
+    }
 }

@@ -45,31 +45,31 @@ fn header_size_is_checked_against_the_limits() {
 #[test]
 fn scale_output_is_checked_against_the_limits() {
     let bytes = sites_file();
-    // The default limit (2^28 samples): a 4096× resampling of 40 × 30 is 159 745 × 118 785.
+    // The default limit (2^28 samples): a 4096× resampling of 40 × 30 is 163 840 × 122 880.
     let what = limit_message(vtz::decode_with(
         &bytes,
         &with(|o| o.scale = Some(Scale::parse("4096").unwrap())),
     ));
-    assert!(what.contains("159745x118785"), "{what}");
-    assert!(what.contains("18975309825 samples"), "{what}");
-    // A tighter limit: ×2 makes 79 × 59 = 4 661 samples.
+    assert!(what.contains("163840x122880"), "{what}");
+    assert!(what.contains("20132659200 samples"), "{what}");
+    // A tighter limit: ×2 makes 80 × 60 = 4 800 samples.
     let what = limit_message(vtz::decode_with(
         &bytes,
         &with(|o| {
             o.scale = Some(Scale::parse("2").unwrap());
-            o.limits = limits(4660);
+            o.limits = limits(4799);
         }),
     ));
-    assert!(what.contains("79x59 raster = 4661 samples"), "{what}");
+    assert!(what.contains("80x60 raster = 4800 samples"), "{what}");
     let r = vtz::decode_with(
         &bytes,
         &with(|o| {
             o.scale = Some(Scale::parse("2").unwrap());
-            o.limits = limits(4661);
+            o.limits = limits(4800);
         }),
     )
     .unwrap();
-    assert_eq!((r.width, r.height), (79, 59));
+    assert_eq!((r.width, r.height), (80, 60));
 }
 
 #[test]
@@ -156,6 +156,6 @@ fn cli_scale_4096_is_a_one_line_limit_error() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.starts_with("vtz: limit exceeded: "), "{err}");
-    assert!(err.contains("159745x118785"), "{err}");
+    assert!(err.contains("163840x122880"), "{err}");
     assert!(!std::path::Path::new(&out).exists(), "no output on error");
 }

@@ -193,30 +193,38 @@ fn scaled_decoding_samples_the_same_surface() {
     };
     let one = dec("1");
     assert_eq!(bits(&one), bits(&base));
+    // GDAL's layout: ⌊w·s⌋ × ⌊h·s⌋ over the same extent, from the same corner.
     let up = dec("2");
-    assert_eq!((up.width, up.height), (99, 79));
+    assert_eq!((up.width, up.height), (100, 80));
     let g = up.georef.as_ref().unwrap();
     assert_eq!(g.pixel_size, [5.0, 5.0]);
-    assert_eq!(g.origin, [1002.5, 1997.5]);
+    assert_eq!(g.origin, [1000.0, 2000.0]);
     let down = dec("0.5");
     assert_eq!((down.width, down.height), (25, 20));
+    // At odd scales output centres fall on source samples: output 3x + 1 is source x at 3,
+    // output i is source 3i + 1 at 1/3.
+    let up3 = dec("3");
+    assert_eq!((up3.width, up3.height), (150, 120));
+    let down3 = dec("1/3");
+    assert_eq!((down3.width, down3.height), (16, 13));
     for y in 0..40 {
         for x in 0..50 {
             let i = y * 50 + x;
             if !base.is_valid(i) {
                 continue;
             }
-            let j = 2 * y * 99 + 2 * x;
-            if up.is_valid(j) {
+            let j = (3 * y + 1) * 150 + 3 * x + 1;
+            if up3.is_valid(j) {
                 assert!(
-                    (up.data[j] - base.data[i]).abs() < 1e-3,
+                    (up3.data[j] - base.data[i]).abs() < 1e-3,
                     "({x},{y}): {} vs {}",
-                    up.data[j],
+                    up3.data[j],
                     base.data[i]
                 );
             }
-            if x % 2 == 0 && y % 2 == 0 && down.is_valid(y / 2 * 25 + x / 2) {
-                assert!((down.data[y / 2 * 25 + x / 2] - base.data[i]).abs() < 1e-3);
+            let k = y / 3 * 16 + x / 3;
+            if x % 3 == 1 && y % 3 == 1 && x / 3 < 16 && down3.is_valid(k) {
+                assert!((down3.data[k] - base.data[i]).abs() < 1e-3);
             }
         }
     }

@@ -5,6 +5,7 @@ import os
 import shutil
 import subprocess
 import threading
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -106,10 +107,29 @@ def test_window_and_scale():
     full = vtz.decode(b)
     w = vtz.decode(b, window=(10, 5, 30, 20))
     assert np.array_equal(w, full[5:25, 10:40])
-    with pytest.raises(vtz.InvalidArgumentError, match="sites section"):
-        vtz.decode(vtz.encode(a, max_error=2, method="grid"), scale=0.5)
     s = vtz.decode(vtz.encode(a, max_error=2, method="sibson"), scale=0.5)
     assert s.shape == (25, 35) and s.dtype == a.dtype
+
+
+def test_scale_decodes_every_method_as_gdal_lays_it_out():
+    a = terrain(50, 70, np.int16)
+    for method in (None, "residual", "grid", "haar", "fis", "sibson"):
+        b = vtz.encode(a, max_error=10, method=method)
+        full = vtz.decode(b)
+        # floor(w * s) x floor(h * s) over the same extent, as gdal_translate -outsize.
+        for scale, shape in ((2, (100, 140)), (0.5, (25, 35)), ("3/2", (75, 105)),
+                             (Fraction(1, 3), (16, 23))):
+            d = vtz.decode(b, scale=scale)
+            assert d.shape == shape and d.dtype == a.dtype, (method, scale)
+            assert np.array_equal(d, vtz.decode(b, scale=scale, threads=1))
+        assert np.array_equal(vtz.decode(b, scale=1), full)
+        if method != "sibson":
+            # Output centres on source samples at scale 3: those samples' decoded values.
+            assert np.array_equal(vtz.decode(b, scale=3)[1::3, 1::3], full)
+    # Exact, never silently rounded: 1/3 as a float has no 32-bit fraction.
+    with pytest.raises(vtz.InvalidArgumentError, match="not representable exactly"):
+        vtz.decode(b, scale=1 / 3)
+    assert vtz.decode(b, scale=0.02).shape == (1, 1)
 
 
 def test_info_fields():

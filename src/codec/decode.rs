@@ -2,11 +2,12 @@
 //! against the limits, and run the section's method from the registry.
 
 use super::options::{DecodeOptions, Scale, SectionChoice};
+use super::resample::{nearest, resample, scaled_georef, scaled_size};
 use crate::container::flat::Flat;
 use crate::container::{ContainerReader, Header, Limits, SectionKind};
 use crate::error::{Error, Result};
-use crate::methods::{self, DecodeJob, Representation};
-use crate::model::{Raster, RasterType, Window};
+use crate::methods::{self, DecodeJob, Scaled};
+use crate::model::{Raster, Window};
 use std::io::{Read, Seek};
 
 /// The registry's names for the container (which knows no method).
@@ -110,17 +111,7 @@ pub(crate) fn decode_reader<R: Read + Seek>(
             method.name()
         )));
     }
-    if let Some(s) = opts.scale {
-        if opts.window.is_some() {
-            return Err(Error::invalid("--scale and --window cannot be combined"));
-        }
-        let (ow, oh) = scaled_size(w, h, s);
-        check_output(
-            || format!("a --scale of {}/{} makes a {ow}x{oh} raster", s.num, s.den),
-            ow.checked_mul(oh),
-            rd.limits(),
-        )?;
-    }
+    let scale = check_scale(opts, w, h, rd.limits())?;
     let payload = rd.read_section(idx)?;
     // A part, a resampling, a prefix or a lossy section of the raster has other statistics
     // than the source's whole.
@@ -129,7 +120,7 @@ pub(crate) fn decode_reader<R: Read + Seek>(
         .get(off..off + 8)
         .is_some_and(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")) != 0.0);
     if lossy
-        || opts.scale.is_some()
+        || scale.is_some()
         || opts.sites.is_some()
         || opts.levels.is_some()
         || (win.width, win.height) != (w, h)
@@ -148,8 +139,10 @@ pub(crate) fn decode_reader<R: Read + Seek>(
         base: None,
         progress,
     };
-    if let Some(s) = opts.scale {
-        return decode_scaled(method, &job, s, gdal_metadata);
+    if let Some((s, ow, oh)) = scale {
+        if let Some(r) = method.decode_scaled(&job, s.num, s.den, (ow, oh))? {
+            return Ok(scaled_raster(r, &header, flat.as_ref(), s, gdal_metadata));
+        }
     }
     let mut data = method.decode(&job)?;
     if let Some(f) = &flat {
@@ -167,8 +160,52 @@ pub(crate) fn decode_reader<R: Read + Seek>(
         georef: header.georef.as_ref().map(|g| g.window(win.x, win.y)),
         gdal_metadata,
     };
+    if let Some((s, ow, oh)) = scale {
+        // A method without a surface of its own: its decoded samples interpolated, the
+        // flat regions then exact by the nearest-sample rule.
+        let out = resample(&r, s, ow, oh, opts.threads)?;
+        let (data, mask) = (out.data, out.mask.unwrap_or_else(|| vec![true; ow * oh]));
+        return Ok(scaled_raster(
+            (data, mask, ow, oh),
+            &header,
+            flat.as_ref(),
+            s,
+            out.gdal_metadata,
+        ));
+    }
     r.normalize_mask();
     Ok(r)
+}
+
+/// The scale a decode asks for, reduced, with its output size checked (at least one sample
+/// each way, within the limits); `None` without one or for a scale of 1, which is the
+/// plain decode.
+pub(crate) fn check_scale(
+    opts: &DecodeOptions,
+    w: usize,
+    h: usize,
+    limits: &Limits,
+) -> Result<Option<(Scale, usize, usize)>> {
+    let Some(s) = opts.scale else {
+        return Ok(None);
+    };
+    if opts.window.is_some() {
+        return Err(Error::invalid("--scale and --window cannot be combined"));
+    }
+    let s = s.reduced();
+    let (ow, oh) = scaled_size(w, h, s);
+    check_output(
+        || format!("a --scale of {}/{} makes a {ow}x{oh} raster", s.num, s.den),
+        ow.checked_mul(oh),
+        limits,
+    )?;
+    if ow == 0 || oh == 0 {
+        return Err(Error::invalid(format!(
+            "a scale of {s} makes a {ow}x{oh} raster of this {w}x{h} one; the smallest scale for it is 1/{}",
+            w.min(h)
+        )));
+    }
+    Ok((s.num != s.den).then_some((s, ow as usize, oh as usize)))
 }
 
 /// The mask a method decodes with: the file's, with the flat regions' samples also
@@ -186,49 +223,29 @@ pub(crate) fn method_mask(
     Some(m)
 }
 
-/// The size of a `w × h` grid resampled by `s` (sample (i, j) sits at source position
-/// (i·den/num, j·den/num), both ends included).
-pub(crate) fn scaled_size(w: usize, h: usize, s: Scale) -> (u64, u64) {
-    let f = |n: usize| (n as u64 - 1) * s.num.max(1) as u64 / s.den.max(1) as u64 + 1;
-    (f(w), f(h))
-}
-
-fn decode_scaled(
-    m: &dyn Representation,
-    job: &DecodeJob,
+/// A decode at scale `s` as a raster: the flat regions' samples exact (each output sample
+/// whose nearest source sample is flat takes its value, and is valid as that sample is),
+/// the georeferencing scaled (same corner, pixel size / s).
+fn scaled_raster(
+    (mut data, mut mask, ow, oh): Scaled,
+    header: &Header,
+    flat: Option<&Flat>,
     s: Scale,
     gdal_metadata: Option<String>,
-) -> Result<Raster> {
-    let header: &Header = job.header;
-    let (mut data, mut mask, ow, oh) = m.decode_scaled(job, s.num, s.den)?;
-    if let Some(f) = job.flat {
-        // A resampled sample whose nearest source sample is in a flat region takes the
-        // region's value (and is valid, as that sample is).
-        let (w, h) = (header.width as usize, header.height as usize);
-        let near = |i: usize, n: usize| {
-            ((i as u64 * s.den as u64 * 2 + s.num as u64) / (2 * s.num as u64)).min(n as u64 - 1)
-                as usize
-        };
+) -> Raster {
+    let (w, h) = (header.width as usize, header.height as usize);
+    if let Some(f) = flat {
+        let xs: Vec<usize> = (0..ow).map(|x| nearest(x, w, s)).collect();
         for y in 0..oh {
-            let sy = near(y, h);
-            for x in 0..ow {
-                if let Some(v) = f.value_at(sy * w + near(x, w)) {
+            let row = nearest(y, h, s) * w;
+            for (x, &sx) in xs.iter().enumerate() {
+                if let Some(v) = f.value_at(row + sx) {
                     data[y * ow + x] = v;
                     mask[y * ow + x] = true;
                 }
             }
         }
     }
-    let f = s.den as f64 / s.num as f64;
-    let georef = header.georef.as_ref().map(|g| {
-        let mut g = g.clone();
-        if g.raster_type == RasterType::Area {
-            g.origin[0] += 0.5 * g.pixel_size[0] * (1.0 - f);
-            g.origin[1] -= 0.5 * g.pixel_size[1] * (1.0 - f);
-        }
-        g.pixel_size = [g.pixel_size[0] * f, g.pixel_size[1] * f];
-        g
-    });
     let mut r = Raster {
         width: ow,
         height: oh,
@@ -237,11 +254,11 @@ fn decode_scaled(
         nodata: header.nodata,
         sample_type: header.sample_type,
         mapping: header.mapping,
-        georef,
+        georef: header.georef.as_ref().map(|g| scaled_georef(g, s)),
         gdal_metadata,
     };
     r.normalize_mask();
-    Ok(r)
+    r
 }
 
 #[cfg(feature = "internals")]

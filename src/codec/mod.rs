@@ -9,6 +9,7 @@ pub mod mesh;
 mod options;
 pub mod points;
 mod rate;
+mod resample;
 mod surface;
 pub mod terrain;
 mod tiles;

@@ -41,7 +41,8 @@ pub struct EncodeOptions {
     pub effort: Option<u8>,
 }
 
-/// A resampling factor `num/den` (2/1 doubles the resolution, 1/4 quarters it).
+/// A resampling factor `num/den` (2/1 doubles the resolution, 1/4 quarters it), always in
+/// lowest terms when it comes from [`Scale::parse`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Scale {
     /// Numerator: output samples per `den` source samples.
@@ -51,34 +52,127 @@ pub struct Scale {
 }
 
 impl Scale {
-    /// Parse `2`, `0.25` or `3/2` (decimals become the nearest fraction with a denominator
-    /// of at most 64).
+    /// Parse `2`, `0.25`, `1e-3` or `3/2` exactly: a decimal is the fraction it writes
+    /// (`0.001` is 1/1000), in lowest terms. A value whose numerator or denominator does not
+    /// fit 32 bits (`0.3333333333333333`, `1e12`) is refused, never rounded: give it as a
+    /// fraction (`1/3`). How large a scale may be is a matter of the output's size, which
+    /// the decoder checks against its limits.
     pub fn parse(s: &str) -> Result<Scale> {
-        let bad = || Error::invalid(format!("scale '{s}' is not a positive number or fraction"));
-        let (num, den) = if let Some((a, b)) = s.split_once('/') {
-            (
-                a.trim().parse::<u32>().map_err(|_| bad())?,
-                b.trim().parse::<u32>().map_err(|_| bad())?,
-            )
-        } else {
-            let v: f64 = s.trim().parse().map_err(|_| bad())?;
-            if !(v > 0.0 && v <= 4096.0) {
-                return Err(bad());
+        let t = s.trim();
+        let bad = || Error::invalid(format!("scale '{t}' is not a positive number or fraction"));
+        let (num, den) = match t.split_once('/') {
+            Some((a, b)) => {
+                let int = |x: &str| {
+                    let x = x.trim();
+                    if x.is_empty() || !x.bytes().all(|c| c.is_ascii_digit()) {
+                        return None;
+                    }
+                    // Leading zeros are harmless; a value over u128 is certainly over u32.
+                    let x = x.trim_start_matches('0');
+                    Some(if x.is_empty() {
+                        0
+                    } else {
+                        x.parse::<u128>().unwrap_or(u128::MAX)
+                    })
+                };
+                match (int(a), int(b)) {
+                    (Some(a), Some(b)) => (a, b),
+                    _ => return Err(bad()),
+                }
             }
-            (1..=64u32)
-                .map(|d| ((v * d as f64).round().max(1.0) as u32, d))
-                .min_by(|a, b| {
-                    let ea = (a.0 as f64 / a.1 as f64 - v).abs();
-                    let eb = (b.0 as f64 / b.1 as f64 - v).abs();
-                    ea.total_cmp(&eb)
-                })
-                .expect("non-empty")
+            None => parse_decimal(t).ok_or_else(bad)?,
         };
         if num == 0 || den == 0 {
             return Err(bad());
         }
-        Ok(Scale { num, den })
+        let g = gcd(num, den);
+        let (num, den) = (num / g, den / g);
+        match (u32::try_from(num), u32::try_from(den)) {
+            (Ok(num), Ok(den)) => Ok(Scale { num, den }),
+            _ => Err(Error::invalid(format!(
+                "scale '{t}' is not representable exactly: a scale is a fraction N/D with N and D from 1 to {} in lowest terms (write e.g. 1/3 for a third)",
+                u32::MAX
+            ))),
+        }
     }
+
+    /// The same factor in lowest terms (a `Scale` built by hand may not be).
+    pub(crate) fn reduced(self) -> Scale {
+        let g = gcd(self.num.max(1) as u128, self.den.max(1) as u128) as u32;
+        Scale {
+            num: self.num.max(1) / g,
+            den: self.den.max(1) / g,
+        }
+    }
+}
+
+impl std::fmt::Display for Scale {
+    /// `2`, `1/2`, `3/2`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.den == 1 {
+            write!(f, "{}", self.num)
+        } else {
+            write!(f, "{}/{}", self.num, self.den)
+        }
+    }
+}
+
+fn gcd(mut a: u128, mut b: u128) -> u128 {
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    a
+}
+
+/// `digits[.digits][e[±]digits]` as an exact fraction; `None` when it is not one (or is so
+/// long that it could never fit a `Scale`, which the caller then reports as unrepresentable
+/// through an overflowing value).
+fn parse_decimal(t: &str) -> Option<(u128, u128)> {
+    let (mant, exp) = match t.find(['e', 'E']) {
+        Some(i) => (&t[..i], Some(&t[i + 1..])),
+        None => (t, None),
+    };
+    let exp: i64 = match exp {
+        Some(e) => {
+            let d = e.strip_prefix('+').unwrap_or(e);
+            let digits = d.strip_prefix('-').unwrap_or(d);
+            if digits.is_empty() || !digits.bytes().all(|c| c.is_ascii_digit()) {
+                return None;
+            }
+            d.parse()
+                .unwrap_or(if d.starts_with('-') { -1000 } else { 1000 })
+        }
+        None => 0,
+    };
+    let (int, frac) = mant.split_once('.').unwrap_or((mant, ""));
+    if (int.is_empty() && frac.is_empty())
+        || !int.bytes().chain(frac.bytes()).all(|c| c.is_ascii_digit())
+    {
+        return None;
+    }
+    let all = format!("{int}{frac}");
+    let mut digits = all.trim_start_matches('0');
+    let mut frac_len = frac.len() as i64 - exp;
+    while digits.len() > 1 && digits.ends_with('0') {
+        digits = &digits[..digits.len() - 1];
+        frac_len -= 1;
+    }
+    // Too many digits or too large an exponent for any 32-bit fraction: u128::MAX stands
+    // for "too large" and reaches the unrepresentable message.
+    let big = (u128::MAX, 1);
+    if digits.is_empty() {
+        return Some((0, 1));
+    }
+    if digits.len() > 30 || !(-30..=30).contains(&frac_len) {
+        return Some(big);
+    }
+    let m: u128 = digits.parse().ok()?;
+    let p = 10u128.pow(frac_len.unsigned_abs() as u32);
+    Some(if frac_len >= 0 {
+        (m, p)
+    } else {
+        (m.saturating_mul(p), 1)
+    })
 }
 
 impl FromStr for Scale {
@@ -129,8 +223,10 @@ pub struct DecodeOptions {
     /// Threads for evaluating the surface (0 = what the machine offers). The output is
     /// bit-identical for every value.
     pub threads: usize,
-    /// Sites section: evaluate the continuous surface on a grid scaled by this factor.
-    /// In a tiled file, any method: the decoded samples resampled bilinearly.
+    /// Decode at this factor times the resolution, GDAL's way (⌊w·s⌋ × ⌊h·s⌋ samples over
+    /// the same extent, pixel size / s): a sites section evaluates its surface there,
+    /// every other section and a tiled file interpolate the decoded samples (bicubic; the
+    /// README's `--scale`). A scale of 1 is the plain decode.
     pub scale: Option<Scale>,
     /// Tiled files: a tile that fails its checksum or its decode becomes nodata (listed by
     /// [`Decoder::skipped`](crate::Decoder::skipped)) instead of failing the decode.

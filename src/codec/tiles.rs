@@ -4,7 +4,7 @@
 
 use super::decode::{self, check_output};
 use super::encode::{EncodeReport, encode_parts};
-use super::options::{DecodeOptions, EncodeOptions, Scale, SectionChoice};
+use super::options::{DecodeOptions, EncodeOptions, SectionChoice};
 use crate::container::tiled::{TileGrid, TiledReader, TiledWriter, tile_block, tile_name};
 use crate::container::{Header, SectionKind};
 use crate::error::{Error, Result};
@@ -472,7 +472,8 @@ pub(crate) fn decode_bands<R: Read + Seek>(
 }
 
 /// Decode a window (or all) of a tiled file into memory; with `opts.scale`, the decoded
-/// samples resampled bilinearly (continuous across tile borders by construction).
+/// samples interpolated as every method's are (`codec::resample`: continuous across tile
+/// borders by construction).
 pub(crate) fn decode_tiled<R: Read + Seek>(
     rd: &mut TiledReader<R>,
     opts: &DecodeOptions,
@@ -480,17 +481,7 @@ pub(crate) fn decode_tiled<R: Read + Seek>(
 ) -> Result<(Raster, Vec<String>)> {
     let header = rd.header().clone();
     let (w, h) = (header.width as usize, header.height as usize);
-    if let Some(s) = opts.scale {
-        if opts.window.is_some() {
-            return Err(Error::invalid("--scale and --window cannot be combined"));
-        }
-        let (ow, oh) = super::decode::scaled_size(w, h, s);
-        check_output(
-            || format!("a --scale of {}/{} makes a {ow}x{oh} raster", s.num, s.den),
-            ow.checked_mul(oh),
-            rd.limits(),
-        )?;
-    }
+    let scale = super::decode::check_scale(opts, w, h, rd.limits())?;
     let win = opts.window.unwrap_or(Window::full(w, h));
     check_output(
         || format!("a decode of {} x {} samples", win.width, win.height),
@@ -527,73 +518,8 @@ pub(crate) fn decode_tiled<R: Read + Seek>(
         r.data.extend_from_slice(&b.data);
     }
     r.normalize_mask();
-    if let Some(s) = opts.scale {
-        r = resample(&r, s);
+    if let Some((s, ow, oh)) = scale {
+        r = super::resample::resample(&r, s, ow, oh, opts.threads)?;
     }
     Ok((r, skipped))
-}
-
-/// The raster resampled by `s`: output sample (i, j) sits at source position
-/// (i·den/num, j·den/num) and takes the bilinear blend of the four samples around it, each
-/// weight an exact fraction of `num`; it is nodata when a sample it needs is.
-fn resample(r: &Raster, s: Scale) -> Raster {
-    let (ow, oh) = super::decode::scaled_size(r.width, r.height, s);
-    let (ow, oh) = (ow as usize, oh as usize);
-    let (num, den) = (s.num as u64, s.den as u64);
-    let pos = |i: usize, n: usize| {
-        let p = i as u64 * den;
-        let a = ((p / num) as usize).min(n - 1);
-        let f = if a == n - 1 { 0 } else { p % num };
-        (a, f as f64 / num as f64)
-    };
-    let xs: Vec<(usize, f64)> = (0..ow).map(|i| pos(i, r.width)).collect();
-    let mut data = Vec::with_capacity(ow * oh);
-    let mut mask = Vec::with_capacity(ow * oh);
-    let st = r.sample_type;
-    for j in 0..oh {
-        let (y0, fy) = pos(j, r.height);
-        let y1 = if fy > 0.0 { y0 + 1 } else { y0 };
-        for &(x0, fx) in &xs {
-            let x1 = if fx > 0.0 { x0 + 1 } else { x0 };
-            let idx = [
-                y0 * r.width + x0,
-                y0 * r.width + x1,
-                y1 * r.width + x0,
-                y1 * r.width + x1,
-            ];
-            if idx.iter().all(|&i| r.is_valid(i)) {
-                let v = (r.data[idx[0]] * (1.0 - fx) + r.data[idx[1]] * fx) * (1.0 - fy)
-                    + (r.data[idx[2]] * (1.0 - fx) + r.data[idx[3]] * fx) * fy;
-                data.push(crate::quant::finish(v, st, r.mapping));
-                mask.push(true);
-            } else {
-                data.push(r.nodata.unwrap_or(f64::NAN));
-                mask.push(false);
-            }
-        }
-    }
-    let f = s.den as f64 / s.num as f64;
-    let georef = r.georef.as_ref().map(|g| {
-        let mut g = g.clone();
-        if g.raster_type == crate::model::RasterType::Area {
-            g.origin[0] += 0.5 * g.pixel_size[0] * (1.0 - f);
-            g.origin[1] -= 0.5 * g.pixel_size[1] * (1.0 - f);
-        }
-        g.pixel_size = [g.pixel_size[0] * f, g.pixel_size[1] * f];
-        g
-    });
-    let mut out = Raster {
-        width: ow,
-        height: oh,
-        data,
-        mask: Some(mask),
-        georef,
-        gdal_metadata: r
-            .gdal_metadata
-            .as_ref()
-            .map(|x| crate::formats::without_statistics(x).into_owned()),
-        ..r.clone_meta()
-    };
-    out.normalize_mask();
-    out
 }

@@ -203,13 +203,17 @@ pub(crate) trait Representation: Sync {
     fn progressive(&self) -> bool {
         false
     }
-    /// Evaluate the surface on a grid scaled by `num/den`; methods without a continuous
-    /// surface leave this out.
-    fn decode_scaled(&self, _job: &DecodeJob, _num: u32, _den: u32) -> Result<Scaled> {
-        Err(Error::invalid(format!(
-            "--scale needs a sites section (this one is {})",
-            self.name()
-        )))
+    /// Evaluate the method's own continuous surface on the `size` grid scaled by
+    /// `num/den` (GDAL's pixel-is-area layout, see `codec::resample`); `None` for methods
+    /// without one, whose decoded samples the codec interpolates instead.
+    fn decode_scaled(
+        &self,
+        _job: &DecodeJob,
+        _num: u32,
+        _den: u32,
+        _size: (usize, usize),
+    ) -> Result<Option<Scaled>> {
+        Ok(None)
     }
     /// The method's own statistics of a payload (what `vtz info --stats` prints); `None`
     /// for a method that keeps none.

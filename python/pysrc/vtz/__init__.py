@@ -176,8 +176,11 @@ def decode(
         A vtz stream.
     window : (x, y, width, height), optional
         Decode only this window (column, row, columns, rows).
-    scale : float or str, optional
-        Resample by this factor (``2``, ``0.5``, ``"3/2"``).
+    scale : float, str or fractions.Fraction, optional
+        Resample by this factor (``2``, ``0.5``, ``"3/2"``) as ``vtz decode --scale`` does:
+        ``floor(w * scale)`` x ``floor(h * scale)`` samples over the same extent. A float
+        means the decimal Python prints for it; one with no exact 32-bit fraction (``1/3``)
+        is refused: pass ``"1/3"``.
     threads : int
         Threads (0 = all cores); the result is bit-identical for every value.
 

@@ -27,7 +27,9 @@ pub struct Args {
     /// Decode only the window x,y,width,height (in samples).
     #[arg(long, value_name = "X,Y,W,H")]
     pub window: Option<String>,
-    /// Sites section: evaluate the surface on a grid scaled by S (2, 0.5, 3/2, …).
+    /// Decode at S times the resolution (2, 0.5, 3/2, 1e-3; exact): ⌊w·S⌋ × ⌊h·S⌋ samples
+    /// over the same extent as `gdal_translate -outsize`; sites through their surface, other
+    /// methods and tiled files by bicubic interpolation of the decoded samples.
     #[arg(long, value_name = "S")]
     pub scale: Option<String>,
     /// Threads (default: all cores); the output is the same for any count.

@@ -116,9 +116,20 @@ impl Representation for Sibson {
     fn progressive(&self) -> bool {
         true
     }
-    fn decode_scaled(&self, job: &DecodeJob, num: u32, den: u32) -> Result<Scaled> {
+    fn decode_scaled(
+        &self,
+        job: &DecodeJob,
+        num: u32,
+        den: u32,
+        size: (usize, usize),
+    ) -> Result<Option<Scaled>> {
         let d = decode_sites(job.payload, job.header, job.mask, job.levels, job.sites)?;
-        render_scaled(&d, job.header, job.mask, num, den)
+        let threads = if job.threads == 0 {
+            default_threads()
+        } else {
+            job.threads
+        };
+        render_scaled(&d, job.header, job.mask, num, den, size, threads).map(Some)
     }
     fn describe(&self, job: &DecodeJob) -> Result<Option<Stats>> {
         Ok(Some(to_stats(

@@ -444,29 +444,39 @@ pub fn stats(payload: &[u8], header: &Header, mask: Option<&[bool]>) -> Result<S
 }
 
 /// Evaluate decoded sites on a grid scaled by `num/den` (2/1 doubles the resolution, 1/2
-/// halves it): output sample (i, j) sits at source position (i·den/num, j·den/num). Exact
-/// lattice arithmetic: the sites are placed at `num ×` their integer positions and every
-/// `den`-th lattice point is evaluated. Returns (values, mask, width, height); a sample is
-/// valid when its nearest source sample is valid and it lies within the sites' hull.
+/// halves it), GDAL's way: `ow × oh` output pixels over the source's extent, output sample
+/// i's centre at source position (i + ½)·den/num − ½, clamped to the raster's samples (the
+/// half pixel beyond the outer sample centres takes the edge's values). Exact lattice
+/// arithmetic: the sites are placed at `2·num ×` their integer positions, output sample i at
+/// (2i + 1)·den − num. Returns (values, mask, width, height); a sample is valid when its
+/// nearest source sample (round half up) is valid and it lies within the sites' hull. Rows
+/// are evaluated in blocks on `threads` threads; each value is the same as a lone
+/// evaluation gives, so the output is the same for any count.
+#[allow(clippy::too_many_arguments)]
 pub fn render_scaled(
     d: &DecodedSites,
     header: &Header,
     mask: Option<&[bool]>,
     num: u32,
     den: u32,
+    (ow, oh): (usize, usize),
+    threads: usize,
 ) -> Result<(Vec<f64>, Vec<bool>, usize, usize)> {
     let (w, h) = (header.width as usize, header.height as usize);
-    let (p, q) = (num.max(1) as i64, den.max(1) as i64);
-    if (w.max(h) as i64 - 1) * p > crate::geometry::triangulation::MAX_COORD {
-        return Err(Error::limit("scale too large for this raster"));
+    let (p, q) = (num.max(1) as i128, den.max(1) as i128);
+    let max = (w.max(h) as i128 - 1) * 2 * p;
+    if max > crate::geometry::triangulation::MAX_COORD as i128 {
+        return Err(Error::limit(format!(
+            "a scale of {num}/{den} places this {w}x{h} raster's sites at coordinates up to {max}, over the sites surface's limit of {}",
+            crate::geometry::triangulation::MAX_COORD
+        )));
     }
-    let ow = ((w as i64 - 1) * p / q + 1) as usize;
-    let oh = ((h as i64 - 1) * p / q + 1) as usize;
     let mut surf = Surface::new();
     let mut hint = u32::MAX;
+    let p2 = 2 * p as i64;
     for &(idx, ht) in &d.sites {
         let (x, y) = ((idx as usize % w) as i64, (idx as usize / w) as i64);
-        surf.insert_near([x * p, y * p], ht, Some(hint))?;
+        surf.insert_near([x * p2, y * p2], ht, Some(hint))?;
         hint = surf
             .triangulation()
             .created()
@@ -474,29 +484,61 @@ pub fn render_scaled(
             .copied()
             .unwrap_or(u32::MAX);
     }
-    // Nearest source sample of a lattice point (x, y) in site space (round half up).
-    let nearest = |x: i64, y: i64| {
-        let sx = ((2 * x + p) / (2 * p)).min(w as i64 - 1) as usize;
-        let sy = ((2 * y + p) / (2 * p)).min(h as i64 - 1) as usize;
-        sy * w + sx
-    };
-    let want = |x: i64, y: i64| mask.is_none_or(|m| m[nearest(x, y)]);
     surf.compact();
-    let vals = surf.eval_lattice(0, 0, ow, oh, q, &want);
+    let coords = |n_out: usize, n: usize| -> Vec<(i64, usize)> {
+        let hi = (n as i128 - 1) * 2 * p;
+        (0..n_out)
+            .map(|i| {
+                let c = ((2 * i as i128 + 1) * q - p).clamp(0, hi) as i64;
+                let near = ((2 * i as u128 + 1) * q as u128 / (2 * p as u128)).min(n as u128 - 1);
+                (c, near as usize)
+            })
+            .collect()
+    };
+    let xs = coords(ow, w);
+    let ys = coords(oh, h);
     let fill = header.nodata.unwrap_or(f64::NAN);
-    let mut out_mask = vec![true; ow * oh];
-    let out = vals
-        .iter()
-        .enumerate()
-        .map(|(i, &v)| {
-            if v.is_nan() {
-                out_mask[i] = false;
-                fill
-            } else {
-                finish_value(v, header)
+    let mut out = vec![fill; ow * oh];
+    let mut out_mask = vec![false; ow * oh];
+    const BLOCK: usize = 64;
+    let block = |j0: usize, vals: &mut [f64], m: &mut [bool]| {
+        let mut s = Scratch::default();
+        let mut row_hint: Option<u32> = None;
+        for (jj, (vrow, mrow)) in vals.chunks_mut(ow).zip(m.chunks_mut(ow)).enumerate() {
+            let (y, sy) = ys[j0 + jj];
+            let mut hint = row_hint;
+            let mut first: Option<u32> = None;
+            for ((&(x, sx), v), mv) in xs.iter().zip(vrow.iter_mut()).zip(mrow.iter_mut()) {
+                if mask.is_some_and(|m| !m[sy * w + sx]) {
+                    continue;
+                }
+                if let Some(e) = surf.eval_seq([x, y], &mut hint, &mut s) {
+                    *v = finish_value(e, header);
+                    *mv = true;
+                }
+                first = first.or(hint);
             }
-        })
-        .collect();
+            row_hint = first.or(row_hint);
+        }
+    };
+    let chunk = BLOCK * ow.max(1);
+    if threads <= 1 || oh <= BLOCK {
+        for (b, (v, m)) in out.chunks_mut(chunk).zip(out_mask.chunks_mut(chunk)).enumerate() {
+            block(b * BLOCK, v, m);
+        }
+    } else {
+        use rayon::prelude::*;
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| Error::unsupported(format!("cannot start {threads} threads: {e}")))?;
+        pool.install(|| {
+            out.par_chunks_mut(chunk)
+                .zip(out_mask.par_chunks_mut(chunk))
+                .enumerate()
+                .for_each(|(b, (v, m))| block(b * BLOCK, v, m));
+        });
+    }
     Ok((out, out_mask, ow, oh))
 }
 
