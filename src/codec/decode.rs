@@ -195,7 +195,7 @@ pub(crate) fn check_scale(
     let s = s.reduced();
     let (ow, oh) = scaled_size(w, h, s);
     check_output(
-        || format!("a --scale of {}/{} makes a {ow}x{oh} raster", s.num, s.den),
+        || format!("a scale of {}/{} makes a {ow}x{oh} raster", s.num, s.den),
         ow.checked_mul(oh),
         limits,
     )?;
