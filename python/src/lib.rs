@@ -202,15 +202,14 @@ fn raster_from(
     let (w, h, data, st) = samples(py, array)?;
     // NaN samples are nodata whatever `nodata` says (as in the CLI and GDAL): with another
     // nodata value they decode as that value (`Raster::from_values`).
-    if let Some(nd) = nodata {
-        if let Some((lo, hi)) = st.int_range()
-            && !(nd >= lo && nd <= hi && nd.fract() == 0.0)
-        {
-            return Err(invalid(
-                py,
-                format!("nodata {nd} is not a value of dtype {}", dtype_name(st)),
-            ));
-        }
+    if let Some(nd) = nodata
+        && let Some((lo, hi)) = st.int_range()
+        && !(nd >= lo && nd <= hi && nd.fract() == 0.0)
+    {
+        return Err(invalid(
+            py,
+            format!("nodata {nd} is not a value of dtype {}", dtype_name(st)),
+        ));
     }
     let nodata = nodata.filter(|v| !v.is_nan());
     Raster::from_values(w, h, data, nodata, st).map_err(|e| to_py(py, e))
