@@ -237,23 +237,16 @@ fn raster_from(
     nodata: Option<f64>,
 ) -> PyResult<Raster> {
     let (w, h, data, st) = samples(py, array)?;
-    if let Some(nd) = nodata {
-        if !nd.is_nan() && data.iter().any(|v| v.is_nan()) {
-            return Err(invalid(
-                py,
-                format!(
-                    "the array holds NaN but nodata is {nd}: say nodata=nan, or replace the NaNs"
-                ),
-            ));
-        }
-        if let Some((lo, hi)) = st.int_range()
-            && !(nd >= lo && nd <= hi && nd.fract() == 0.0)
-        {
-            return Err(invalid(
-                py,
-                format!("nodata {nd} is not a value of dtype {}", dtype_name(st)),
-            ));
-        }
+    // NaN samples are nodata whatever `nodata` says (as in the CLI and GDAL): with another
+    // nodata value they decode as that value (`Raster::from_values`).
+    if let Some(nd) = nodata
+        && let Some((lo, hi)) = st.int_range()
+        && !(nd >= lo && nd <= hi && nd.fract() == 0.0)
+    {
+        return Err(invalid(
+            py,
+            format!("nodata {nd} is not a value of dtype {}", dtype_name(st)),
+        ));
     }
     let nodata = nodata.filter(|v| !v.is_nan());
     Raster::from_values(w, h, data, nodata, st).map_err(|e| to_py(py, e))

@@ -242,12 +242,22 @@ def test_bad_arrays_raise_clear_errors(bad, exc, words):
         vtz.encode(bad)
 
 
-def test_bad_arguments_raise_clear_errors(tmp_path):
+def test_nan_with_another_nodata_is_nodata():
+    """NaN in a float array is nodata whatever ``nodata`` says (as in the CLI and GDAL):
+    it decodes as the nodata value, every other sample within the bound."""
     a = terrain(8, 8, np.float32)
     nan = a.copy()
     nan[0, 0] = np.nan
-    with pytest.raises(vtz.InvalidArgumentError, match="NaN but nodata"):
-        vtz.encode(nan, nodata=-9999)
+    nan[3, 5] = -9999
+    d = vtz.decode(vtz.encode(nan, nodata=-9999, max_error=0.5))
+    assert d[0, 0] == -9999 and d[3, 5] == -9999
+    ok = np.ones(a.shape, bool)
+    ok[0, 0] = ok[3, 5] = False
+    assert np.abs(d[ok] - a[ok]).max() <= 0.5
+
+
+def test_bad_arguments_raise_clear_errors(tmp_path):
+    a = terrain(8, 8, np.float32)
     with pytest.raises(vtz.InvalidArgumentError, match="exclude"):
         vtz.encode(a, max_error=1, lossless=True)
     with pytest.raises(vtz.InvalidArgumentError, match="max_error"):

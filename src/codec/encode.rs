@@ -23,6 +23,9 @@ pub struct EncodeReport {
     /// The methods encoded in full (for `best`: the shortlist its trial on sample tiles
     /// kept; every method `best` may try on small rasters).
     pub encoded: Vec<Method>,
+    /// What the caller should print: `best` answering a lossy request with a lossless file
+    /// because no method met the bound lossily says so here, with each method's reason.
+    pub notes: Vec<String>,
 }
 
 /// One encoded representation, before it goes into the container.
@@ -115,6 +118,7 @@ pub(crate) fn encode_parts(
     let mut cands: Vec<Candidate> = Vec::new();
     let mut skipped: Vec<(Method, String)> = Vec::new();
     let mut encoded: Vec<Method> = Vec::new();
+    let mut notes: Vec<String> = Vec::new();
     if opts.methods.is_empty() {
         // `best`: the methods that can meet the request, shortlisted by a trial on sample
         // tiles (large rasters only), each encoded in full; the smallest wins.
@@ -133,8 +137,10 @@ pub(crate) fn encode_parts(
         } else {
             0.0
         };
+        // Why each method left out could not meet the request (for the note below).
+        let mut why: Vec<(&'static str, String)> = Vec::new();
         let short = if trial {
-            shortlist(&runs, raster, opts, &mut |f| progress(share * f))?
+            shortlist(&runs, raster, opts, &mut why, &mut |f| progress(share * f))?
         } else {
             runs
         };
@@ -152,7 +158,10 @@ pub(crate) fn encode_parts(
             };
             match encode_method(m, raster, &header, opts, e, flat, &mut p) {
                 Ok(c) => cands.push(c),
-                Err(err) => last_err = Some(err),
+                Err(err) => {
+                    why.push((m.name(), err.to_string()));
+                    last_err = Some(err);
+                }
             }
         }
         if cands.is_empty() {
@@ -163,6 +172,26 @@ pub(crate) fn encode_parts(
         let i = (0..cands.len())
             .min_by_key(|&i| cands[i].enc.payload.len())
             .expect("non-empty");
+        // A lossy request that only lossless coding answered: never silently (the file may
+        // be many times the size a lossy file would have).
+        let lossy = e.is_some_and(|b| b > 0.0 && raster.value_step().is_none_or(|q| b >= q / 2.0));
+        if lossy && cands.iter().all(|c| c.enc.bound == 0.0) {
+            let reasons: Vec<String> = why
+                .iter()
+                .map(|(m, r)| format!("{m}: {}", r.trim_start_matches("cannot meet the request: ")))
+                .collect();
+            notes.push(format!(
+                "no method met max error {} lossily on this raster, so it is stored losslessly \
+                 ({} bytes){}",
+                crate::metrics::num(e.unwrap_or(0.0)),
+                cands[i].enc.payload.len(),
+                if reasons.is_empty() {
+                    String::new()
+                } else {
+                    format!(": {}", reasons.join("; "))
+                }
+            ));
+        }
         cands = vec![cands.swap_remove(i)];
     } else {
         let n = opts.methods.len();
@@ -222,6 +251,7 @@ pub(crate) fn encode_parts(
         stats: cands[primary].enc.stats.clone(),
         skipped,
         encoded,
+        notes,
     };
     for (i, c) in cands.into_iter().enumerate() {
         sections.push(Section {
@@ -268,9 +298,9 @@ const TRIAL_LOW_RATE: f64 = 0.25;
 
 /// What `best` may try: (method, the bound it is asked for). Settings only one method reads
 /// (a site count, an RMSE) name that method alone; a lossless request, the lossless
-/// methods; otherwise every method, and also the lossless grid when the bound is below half
-/// the data's own value step (then only the exact values meet it, and lossless coding
-/// stores them best).
+/// methods; a bound below half the data's own value step too (only the exact values meet
+/// it, so it is a lossless request: no trial of the lossy methods, which would only find
+/// the exact values at many times the cost); otherwise every method.
 fn best_runs(
     raster: &Raster,
     opts: &EncodeOptions,
@@ -288,13 +318,10 @@ fn best_runs(
     let lossless_methods = REGISTRY.iter().copied().filter(|m| m.lossless_default());
     match e {
         None | Some(0.0) => lossless_methods.map(|m| (m, e)).collect(),
-        Some(b) => {
-            let mut runs: Vec<_> = REGISTRY.iter().map(|&m| (m, e)).collect();
-            if raster.value_step().is_some_and(|q| b < q / 2.0) {
-                runs.extend(lossless_methods.map(|m| (m, Some(0.0))));
-            }
-            runs
+        Some(b) if raster.value_step().is_some_and(|q| b < q / 2.0) => {
+            lossless_methods.map(|m| (m, Some(0.0))).collect()
         }
+        Some(_) => REGISTRY.iter().map(|&m| (m, e)).collect(),
     }
 }
 
@@ -306,10 +333,12 @@ fn best_runs(
 /// encoders' cost grows with size (the sites encoder about N^1.5), so the trial
 /// costs a small part of one full encode; `benches/best_choice.sh` checks that the choice
 /// equals the exhaustive one.
+/// A method that fails on a tile gives its reason to `why`.
 fn shortlist(
     runs: &[(&'static dyn Representation, Option<f64>)],
     raster: &Raster,
     opts: &EncodeOptions,
+    why: &mut Vec<(&'static str, String)>,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Vec<(&'static dyn Representation, Option<f64>)>> {
     let (tw, th) = (TRIAL_TILE.min(raster.width), TRIAL_TILE.min(raster.height));
@@ -346,7 +375,8 @@ fn shortlist(
             progress((done + m.relative_cost() * (k + 1) as f64) / total);
             match r {
                 Ok(c) => *sum.as_mut().expect("still a candidate") += c.enc.payload.len(),
-                Err(_) => {
+                Err(err) => {
+                    why.push((m.name(), err.to_string()));
                     sum = None;
                     break;
                 }

@@ -189,6 +189,7 @@ pub fn encode_tiled<W: Write + Seek>(
         stats: None,
         skipped: Vec::new(),
         encoded: Vec::new(),
+        notes: Vec::new(),
     };
     let mut counts: Vec<(Method, usize)> = Vec::new();
     progress(0.0);
@@ -239,6 +240,10 @@ pub fn encode_tiled<W: Write + Seek>(
                 if !report.encoded.contains(&m) {
                     report.encoded.push(m);
                 }
+            }
+            // The first tile's note says why (the others' differ in their numbers only).
+            if report.notes.is_empty() {
+                report.notes = rep.notes;
             }
         }
     }

@@ -95,6 +95,66 @@ pub fn read(bytes: &[u8], name: &str, opts: &ReadOptions) -> Result<Raster> {
     })
 }
 
+/// The `[NS]dd[EW]ddd` name of the 1° tile whose south-west corner is (lon, lat).
+fn tile_name(lon: f64, lat: f64) -> String {
+    format!(
+        "{}{:02}{}{:03}",
+        if lat < 0.0 { 'S' } else { 'N' },
+        lat.abs() as u32,
+        if lon < 0.0 { 'W' } else { 'E' },
+        lon.abs() as u32
+    )
+}
+
+/// The south-west corner (lon, lat) of the 1° SRTM tile `r` is, when its georef makes it
+/// one: WGS84 (or no CRS said), an N × N grid of posts 1/(N-1)° apart from a whole degree
+/// (pixel-is-point; pixel-is-area half a pixel out, as GDAL reports an `.hgt`).
+fn srtm_corner(r: &Raster) -> Option<(f64, f64)> {
+    let g = r.georef.as_ref()?;
+    if r.width != r.height || r.width < 2 || g.epsg.is_some_and(|e| e != 4326) {
+        return None;
+    }
+    let step = 1.0 / (r.width - 1) as f64;
+    let tol = step * 1e-3;
+    if (g.pixel_size[0] - step).abs() > tol || (g.pixel_size[1] - step).abs() > tol {
+        return None;
+    }
+    let half = match g.raster_type {
+        RasterType::Point => 0.0,
+        RasterType::Area => step / 2.0,
+    };
+    let (lon, top) = (g.origin[0] + half, g.origin[1] - half);
+    let (flon, ftop) = (lon.round(), top.round());
+    ((lon - flon).abs() <= tol && (top - ftop).abs() <= tol && ftop > -89.5 && ftop <= 90.0)
+        .then_some((flon, ftop - 1.0))
+}
+
+/// An `.hgt` file is placed by its name alone: refuse to write `r` under `name` when the
+/// name does not place it where its georef says (the georef would be lost without a word;
+/// GDAL could not place the file). A raster without georef, or `drop_georef`, passes.
+pub fn check_name(r: &Raster, name: &str, drop_georef: bool) -> Result<()> {
+    if r.georef.is_none() || drop_georef {
+        return Ok(());
+    }
+    let corner = srtm_corner(r);
+    if corner.is_some() && corner == tile_corner(name) {
+        return Ok(());
+    }
+    let fix = match corner {
+        Some((lon, lat)) => format!(
+            "this raster is SRTM tile {}: name the file so (e.g. {}.hgt)",
+            tile_name(lon, lat),
+            tile_name(lon, lat)
+        ),
+        None => "this raster is no 1° SRTM tile on WGS84".to_string(),
+    };
+    Err(Error::invalid(format!(
+        "{name}: an .hgt file is placed by its name alone ([NS]dd[EW]ddd), and this name does \
+         not place the raster where its georeferencing says; {fix}, or write a GeoTIFF (.tif), \
+         or drop the georeferencing with --drop-georef"
+    )))
+}
+
 /// Write a square raster as an `.hgt` tile (the georef is not stored: the file name carries
 /// it). Values are rounded to the nearest integer and must fit i16 without being -32768;
 /// invalid samples become -32768.
@@ -225,6 +285,34 @@ mod tests {
             read(&b, "x.hgt", &o),
             Err(Error::LimitExceeded { .. })
         ));
+    }
+
+    #[test]
+    fn names_must_place_a_georeferenced_tile() {
+        let r = read(&small_tile(), "S01E010.hgt", &opts()).unwrap();
+        assert!(check_name(&r, "S01E010.hgt", false).is_ok());
+        assert!(check_name(&r, "x_s01e010_y.hgt", false).is_ok());
+        let e = check_name(&r, "tile.hgt", false).unwrap_err().to_string();
+        assert!(e.contains("S01E010.hgt"), "{e}");
+        assert!(check_name(&r, "S01E011.hgt", false).is_err());
+        assert!(check_name(&r, "tile.hgt", true).is_ok());
+        // Pixel-is-area, half a post out (as GDAL reports an .hgt), is the same tile.
+        let mut a = r.clone();
+        let g = a.georef.as_mut().unwrap();
+        g.raster_type = RasterType::Area;
+        g.origin = [10.0 - 0.25, 0.25];
+        assert!(check_name(&a, "S01E010.hgt", false).is_ok());
+        // Without georef there is nothing to lose.
+        let n = read(&small_tile(), "tile.hgt", &opts()).unwrap();
+        assert!(check_name(&n, "tile.hgt", false).is_ok());
+        // Not a 1° tile at all (a UTM grid): no name places it.
+        let mut u = r.clone();
+        let g = u.georef.as_mut().unwrap();
+        g.epsg = Some(32611);
+        let e = check_name(&u, "S01E010.hgt", false)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no 1° SRTM tile"), "{e}");
     }
 
     #[test]

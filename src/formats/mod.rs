@@ -126,6 +126,10 @@ pub struct WriteOptions {
     /// Let a format that cannot hold the values exactly (16-bit PNG codes, Terrain-RGB)
     /// round them; without it such a write is refused.
     pub round: bool,
+    /// Let a format that cannot place the raster (an `.hgt` whose name is not the tile's
+    /// `[NS]dd[EW]ddd`) write it without its georeferencing; without it such a write is
+    /// refused.
+    pub drop_georef: bool,
 }
 
 /// Open a raster file to be read band by band: raw `.f32` by seeking, GeoTIFF by chunks
@@ -293,7 +297,11 @@ pub(crate) fn encode_path(
             push_pam(&mut v, path, &pam);
             v
         }
-        Format::Hgt => one(hgt::write(raster)?),
+        Format::Hgt => {
+            let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+            hgt::check_name(raster, name, opts.drop_georef)?;
+            one(hgt::write(raster)?)
+        }
         Format::Asc => {
             let mut v = one(asc::write(raster)?);
             // The header places the grid and declares its nodata; the CRS goes in the .prj,

@@ -3,7 +3,10 @@
 //! The `.f32` file holds `width × height` little-endian `f32` values, row-major, row 0 = north,
 //! no header. The json sidecar holds `width`, `height`, `source_dtype`, `nodata`, `dx`, `dy`
 //! and, when vtz wrote it, a `georef` object and an optional `value_mapping`
-//! (`{"scale": s, "offset": o}`). The georef object, and the exact form of its floats, are
+//! (`{"scale": s, "offset": o}`). The file holds the values themselves (metres, not PNG
+//! codes); `source_dtype` is the type of the integer codes they came from, through
+//! `value_mapping` when there is one (`value = offset + scale·code`), and the reader keeps
+//! it only when every value is such a code. The georef object, and the exact form of its floats, are
 //! those of [`crate::formats::sidecar`] (shared with the PNG sidecar and the EXR
 //! `vtz_georef` attribute).
 //! Corpus sidecars have no `georef` object; their georeferencing is rebuilt from the
@@ -219,9 +222,12 @@ pub fn read(bytes: &[u8], json: &[u8], opts: &ReadOptions) -> Result<Raster> {
     if nodata32.is_some_and(f32::is_nan) {
         return Err(Error::corrupt("raw sidecar json: nodata is NaN"));
     }
+    let mapping = mapping_of(&meta)?;
     let mut data = Vec::with_capacity(n);
-    // Range of the valid values, and whether they are all integers.
+    // Range of the valid values, whether they are all integers, and whether they all are
+    // whole codes of the value mapping.
     let (mut lo, mut hi, mut all_int) = (f64::INFINITY, f64::NEG_INFINITY, true);
+    let mut codes_int = true;
     for (i, c) in bytes.chunks_exact(4).enumerate() {
         let v = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
         let is_nodata = nodata32.is_some_and(|nd| v == nd);
@@ -237,10 +243,11 @@ pub fn read(bytes: &[u8], json: &[u8], opts: &ReadOptions) -> Result<Raster> {
             lo = lo.min(d);
             hi = hi.max(d);
             all_int &= d.fract() == 0.0;
+            codes_int &= mapping.is_none_or(|m| is_code(m, d));
         }
         data.push(v as f64);
     }
-    let (st, mapping, georef) = band_meta(&meta, height, lo, hi, all_int)?;
+    let (st, mapping, georef) = band_meta(&meta, height, lo, hi, all_int, codes_int)?;
     let mut r = Raster::from_values(width, height, data, nodata32.map(|v| v as f64), st)?;
     if let Some(m) = mapping {
         r.mapping = m;
@@ -251,31 +258,9 @@ pub fn read(bytes: &[u8], json: &[u8], opts: &ReadOptions) -> Result<Raster> {
 
 /// What a raw raster's sidecar and the range of its values decide: the sample type, the
 /// value mapping and the georef (for a raster of `height` rows).
-fn band_meta(
-    meta: &RawJsonIn,
-    height: usize,
-    lo: f64,
-    hi: f64,
-    all_int: bool,
-) -> Result<(SampleType, Option<ValueMapping>, Option<Georef>)> {
-    let declared = sample_type_from_text(json_text(&meta.source_dtype));
-    // An integer source_dtype may describe stored codes rather than the values (e.g. a
-    // uint16 PNG holding metres + 32768): keep it only when the values fit it, else take the
-    // smallest signed integer type that holds them, else f32.
-    let fits = |t: SampleType| {
-        t.int_range()
-            .is_none_or(|(a, b)| all_int && (lo > hi || (lo >= a && hi <= b)))
-    };
-    let sample_type = if !declared.is_integer() || fits(declared) {
-        declared
-    } else if fits(SampleType::I16) {
-        SampleType::I16
-    } else if fits(SampleType::I32) {
-        SampleType::I32
-    } else {
-        SampleType::F32
-    };
-    let mapping = match &meta.value_mapping {
+/// The sidecar's value mapping, checked.
+fn mapping_of(meta: &RawJsonIn) -> Result<Option<ValueMapping>> {
+    Ok(match &meta.value_mapping {
         Some(m) => {
             let (scale, offset) = (m.scale.0, m.offset.0);
             if !(scale.is_finite() && scale != 0.0 && offset.is_finite()) {
@@ -286,6 +271,49 @@ fn band_meta(
             Some(ValueMapping { scale, offset })
         }
         None => None,
+    })
+}
+
+/// Whether the value `v` is a whole code of the mapping `m` (`v = offset + scale·code`).
+fn is_code(m: ValueMapping, v: f64) -> bool {
+    let c = (v - m.offset) / m.scale;
+    c.fract() == 0.0 && m.offset + m.scale * c == v
+}
+
+fn band_meta(
+    meta: &RawJsonIn,
+    height: usize,
+    lo: f64,
+    hi: f64,
+    all_int: bool,
+    codes_int: bool,
+) -> Result<(SampleType, Option<ValueMapping>, Option<Georef>)> {
+    let declared = sample_type_from_text(json_text(&meta.source_dtype));
+    let mapping = mapping_of(meta)?;
+    // The file holds the values; an integer source_dtype describes the codes they came
+    // from, through the value mapping when there is one (a uint16 PNG holding metres +
+    // 32768: values -5..1580, codes 32763..34348). Keep it only when every value is a code
+    // of that type, else take the smallest signed integer type that holds the values
+    // themselves (without a mapping), else f32 (which keeps the mapping, for writing the
+    // PNG back). A mapping never describes an integer type whose codes it overflows.
+    let codes_fit = |t: SampleType, m: ValueMapping| {
+        let (a, b) = ((lo - m.offset) / m.scale, (hi - m.offset) / m.scale);
+        let (clo, chi) = (a.min(b), a.max(b));
+        t.int_range()
+            .is_none_or(|(a, b)| codes_int && (lo > hi || (clo >= a && chi <= b)))
+    };
+    let fits = |t: SampleType| {
+        t.int_range()
+            .is_none_or(|(a, b)| all_int && (lo > hi || (lo >= a && hi <= b)))
+    };
+    let (sample_type, mapping) = match mapping {
+        _ if !declared.is_integer() => (declared, mapping),
+        Some(m) if codes_fit(declared, m) => (declared, mapping),
+        None if fits(declared) => (declared, None),
+        Some(m) if !m.is_identity() => (SampleType::F32, mapping),
+        _ if fits(SampleType::I16) => (SampleType::I16, None),
+        _ if fits(SampleType::I32) => (SampleType::I32, None),
+        _ => (SampleType::F32, mapping),
     };
     let georef = match meta.georef.clone() {
         Some(g) => Some(g.into()),
@@ -340,7 +368,9 @@ impl RawSource {
         if nodata32.is_some_and(f32::is_nan) {
             return Err(Error::corrupt("raw sidecar json: nodata is NaN"));
         }
+        let mapping = mapping_of(&meta)?;
         let (mut lo, mut hi, mut all_int) = (f64::INFINITY, f64::NEG_INFINITY, true);
+        let mut codes_int = true;
         let mut rd = std::io::BufReader::with_capacity(1 << 20, file);
         // Whole rows at a time (the file's length was checked, so they are all there).
         let mut buf = vec![0u8; width * 4];
@@ -361,9 +391,10 @@ impl RawSource {
                 lo = lo.min(d);
                 hi = hi.max(d);
                 all_int &= d.fract() == 0.0;
+                codes_int &= mapping.is_none_or(|m| is_code(m, d));
             }
         }
-        let (sample_type, mapping, georef) = band_meta(&meta, height, lo, hi, all_int)?;
+        let (sample_type, mapping, georef) = band_meta(&meta, height, lo, hi, all_int, codes_int)?;
         Ok(RawSource {
             file: rd,
             width,
@@ -667,6 +698,41 @@ mod tests {
             read(&two(f32::INFINITY), ok, &opts()),
             Err(Error::Corrupt { .. })
         ));
+    }
+
+    /// The file holds metres; `source_dtype` and `value_mapping` the codes they came from
+    /// (a uint16 PNG of metres + 32768). The type is kept when every value is such a code,
+    /// and a mapping never rides on an integer type whose codes it overflows (which left
+    /// every lossy method unable to code the raster).
+    #[test]
+    fn source_dtype_describes_the_codes_through_the_mapping() {
+        let vals = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+        let side = |dtype: &str, offset: f64| {
+            format!(
+                r#"{{"width": 3, "height": 1, "source_dtype": "{dtype}",
+                    "value_mapping": {{"scale": 1.0, "offset": {offset}}}}}"#
+            )
+        };
+        let metres = vals(&[-5.0, 0.0, 1580.0]);
+        let r = read(&metres, side("u16", -32768.0).as_bytes(), &opts()).unwrap();
+        assert_eq!(r.sample_type, SampleType::U16);
+        assert_eq!(r.mapping.offset, -32768.0);
+        assert_eq!(r.value_step(), Some(1.0));
+        // Codes 32763..34348 overflow i16: f32, the mapping kept for writing a PNG back.
+        let r = read(&metres, side("i16", -32768.0).as_bytes(), &opts()).unwrap();
+        assert_eq!(r.sample_type, SampleType::F32);
+        // Values that are no whole codes of the mapping (a half-step offset): not u16.
+        let r = read(&metres, side("u16", -32768.5).as_bytes(), &opts()).unwrap();
+        assert!(!r.sample_type.is_integer(), "{:?}", r.sample_type);
+        // The streaming reader decides the same.
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("m.f32");
+        std::fs::write(&p, &metres).unwrap();
+        let src = RawSource::open(&p, side("u16", -32768.0).as_bytes()).unwrap();
+        assert_eq!(
+            (src.sample_type, src.mapping.offset),
+            (SampleType::U16, -32768.0)
+        );
     }
 
     #[test]

@@ -117,8 +117,8 @@ def encode(
     lossless : bool
         Lossless (the default when no ``max_error`` is given); excludes ``max_error``.
     nodata : float, optional
-        A value meaning "no data". NaN samples of float arrays are always nodata; an array
-        holding NaN with a non-NaN ``nodata`` is an error.
+        A value meaning "no data". NaN samples of float arrays are always nodata (as GDAL
+        treats NaN in a float raster); with a non-NaN ``nodata`` they decode as that value.
     method : str, optional
         ``"best"`` (default), ``"sibson"``, ``"grid"``, ``"haar"``, ``"fis"``, ``"residual"``,
         or a comma list.

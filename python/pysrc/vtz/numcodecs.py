@@ -145,8 +145,8 @@ class Vtz(Codec):
         Lossless coding; excludes ``max_error``.
     nodata : int or float, optional
         A value meaning "no data": such samples decode to exactly this value. NaN samples
-        of float chunks are always nodata (``nodata=NaN`` is the same as ``None``); a float
-        chunk holding NaN with a non-NaN ``nodata`` cannot be encoded.
+        of float chunks are always nodata (``nodata=NaN`` is the same as ``None``); with a
+        non-NaN ``nodata`` they decode as that value.
     method : str, optional
         ``None``/``"best"`` (try the methods, keep the smallest), or a method name such as
         ``"sibson"``, ``"grid"``, ``"haar"``, ``"fis"``, ``"residual"`` (or a comma list).

@@ -207,7 +207,7 @@ class VtzCodec(ArrayBytesCodec, ArrayBytesCodecPartialDecodeMixin):
         array_spec : ArraySpec
             The spec: its dtype must be one vtz holds; a float array whose fill value is
             NaN cannot have a non-NaN ``nodata`` (its padding and unwritten chunks would be
-            NaN, which vtz refuses next to another nodata value).
+            NaN, while vtz decodes NaN samples as the nodata value).
 
         Returns
         -------

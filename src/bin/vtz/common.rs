@@ -154,6 +154,11 @@ pub struct RasterOpts {
     /// 0.1 m steps); without it such a write is refused, never silently rounded.
     #[arg(long)]
     pub round: bool,
+    /// Writing: let a format that cannot place the raster (an .hgt not named after its
+    /// tile, N22W160.hgt) write it without its georeferencing; without it such a write is
+    /// refused.
+    #[arg(long)]
+    pub drop_georef: bool,
 }
 
 impl RasterOpts {
@@ -211,6 +216,7 @@ pub fn write_options(format: Option<Format>, force: bool, opts: &RasterOpts) -> 
         force,
         png_mapping: opts.mapping(),
         round: opts.round,
+        drop_georef: opts.drop_georef,
     }
 }
 
@@ -247,6 +253,29 @@ pub fn check_distinct(input: &Path, output: &Path) -> Result<()> {
 /// Everything about an output that can fail, checked before the work starts: not the input,
 /// not an existing file without `--force`, in a directory that exists and takes new files
 /// (probed with a file created and removed at once).
+/// Refuse a `.vtz` output named with another format's extension (`encode x.tif -o y.tif`
+/// would write a container that GDAL and every other reader take for a GeoTIFF).
+pub fn check_vtz_name(output: &Path) -> Result<()> {
+    let other = match Format::from_path(output) {
+        Ok(Format::Vtz) => None,
+        Ok(f) => Some(f.name()),
+        Err(_) => vtz::formats::points::PointFormat::from_path(output).map(|f| match f {
+            vtz::formats::points::PointFormat::Xyz => "XYZ text",
+            vtz::formats::points::PointFormat::Csv => "CSV text",
+            vtz::formats::points::PointFormat::Las => "LAS",
+            vtz::formats::points::PointFormat::Laz => "LAZ",
+        }),
+    };
+    match other {
+        Some(name) => Err(Error::invalid(format!(
+            "{}: encode writes a .vtz container, and this name says {name}: name it .vtz \
+             (vtz convert and vtz decode write {name})",
+            output.display()
+        ))),
+        None => Ok(()),
+    }
+}
+
 pub fn check_output(input: &Path, output: &Path, force: bool) -> Result<()> {
     check_distinct(input, output)?;
     if !force && output.exists() {

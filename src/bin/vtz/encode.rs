@@ -162,6 +162,9 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     for (m, why) in &report.skipped {
         ui.say(format!("note: no {} section: {why}", m.name()));
     }
+    for n in &report.notes {
+        ui.say(format!("note: {n}"));
+    }
     let raw = samples as u64 * info.sample_type.bits() as u64 / 8;
     // What any file pays whatever its samples: header, directory, checksums,
     // georeferencing and a method's own header (177 bytes for a georeferenced 1 × 1 raster).
@@ -204,6 +207,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             "method": report.method.name(),
             "encoded": report.encoded.iter().map(|m| m.name()).collect::<Vec<_>>(),
             "skipped": report.skipped.iter().map(|(m, why)| serde_json::json!({"method": m.name(), "reason": why})).collect::<Vec<_>>(),
+            "notes": report.notes,
             "sites": sites,
             "levels": stat("levels").map(common::stat_json),
             "position_bits_per_site": stat("position_bits_per_site").map(common::stat_json),

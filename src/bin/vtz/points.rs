@@ -4,7 +4,8 @@
 use crate::common::{self, Ui};
 use crate::{decode, encode, info};
 use vtz::formats::points::{
-    PointFormat, ReadPointsOptions, WritePointsOptions, is_points_path, read_points, write_points,
+    PointFormat, ReadPointsOptions, WritePointsOptions, is_points_path, read_points_report,
+    write_points,
 };
 use vtz::metrics::num;
 use vtz::{Error, ErrorBound, PointSet, PointsOptions, Result};
@@ -47,6 +48,9 @@ pub fn check_encode_options(a: &encode::Args) -> Result<()> {
                 )));
             }
         }
+    }
+    if let Some(out) = &a.output {
+        common::check_vtz_name(out)?;
     }
     Ok(())
 }
@@ -176,8 +180,13 @@ pub fn encode(a: &encode::Args, ui: &Ui) -> Result<()> {
             class: a.class,
             ..Default::default()
         };
-        ui.busy("reading", || read_points(&a.input, &ro))
-            .map_err(|e| e.context(a.input.display()))?
+        let (ps, rep) = ui
+            .busy("reading", || read_points_report(&a.input, &ro))
+            .map_err(|e| e.context(a.input.display()))?;
+        if let Some(n) = rep.note {
+            ui.say(format!("note: {}: {n}", a.input.display()));
+        }
+        ps
     } else {
         if a.class.is_some() {
             return Err(Error::invalid("--class is for LAS/LAZ input"));

@@ -130,8 +130,11 @@ fn crs_of(h: &::las::Header) -> (Option<u32>, Option<String>) {
     (epsg, wkt)
 }
 
-/// Read a LAS or LAZ file: x, y and z of every point (of class `class` when given).
-pub(super) fn read(path: &Path, class: Option<u8>) -> Result<PointSet> {
+/// Read a LAS or LAZ file: x, y and z of every point (of class `class` when given), and a
+/// note naming what a point set does not keep (the classification, intensity, GPS time,
+/// colour of the point format), `None` when the file holds nothing beyond x, y and z.
+/// A class filter that keeps no point is an [`Error::Unmet`] naming the classes present.
+pub(super) fn read(path: &Path, class: Option<u8>) -> Result<(PointSet, Option<String>)> {
     let file = std::fs::File::open(path).map_err(|e| Error::io("opening", e))?;
     let len = file
         .metadata()
@@ -142,6 +145,7 @@ pub(super) fn read(path: &Path, class: Option<u8>) -> Result<PointSet> {
     let mut reader = ::las::Reader::new(r).map_err(las_err)?;
     let header = reader.header();
     let (epsg, wkt) = crs_of(header);
+    let format = *header.point_format();
     let declared = header.number_of_points();
     let reserve = if class.is_some() {
         0
@@ -151,12 +155,20 @@ pub(super) fn read(path: &Path, class: Option<u8>) -> Result<PointSet> {
     let mut x = Vec::with_capacity(reserve);
     let mut y = Vec::with_capacity(reserve);
     let mut z = Vec::with_capacity(reserve);
+    // Points per classification (all points, before the filter), and whether any has an
+    // intensity: what the note says is not kept.
+    let mut classes = [0u64; 256];
+    let mut intensity = false;
     let mut batch = ::las::PointDataBuilder::new().for_header(header).build();
     loop {
         let got = reader.fill_points(BATCH, &mut batch).map_err(las_err)?;
         if got == 0 {
             break;
         }
+        for k in batch.classification() {
+            classes[k as usize] += 1;
+        }
+        intensity |= batch.intensity().any(|i| i != 0);
         match class {
             None => {
                 x.extend(batch.x());
@@ -175,10 +187,49 @@ pub(super) fn read(path: &Path, class: Option<u8>) -> Result<PointSet> {
             }
         }
     }
+    let present: Vec<String> = (0..256)
+        .filter(|&k| classes[k] > 0)
+        .map(|k| k.to_string())
+        .collect();
+    if let Some(c) = class.filter(|_| x.is_empty()) {
+        let have = if present.is_empty() {
+            "the file has no points".to_string()
+        } else {
+            format!("classes present: {}", present.join(", "))
+        };
+        return Err(Error::unmet(format!("no points of class {c} ({have})")));
+    }
+    let mut dropped = Vec::new();
+    if classes[1..].iter().any(|&n| n > 0) {
+        dropped.push(match class {
+            Some(c) => format!("classification (class {c})"),
+            None => format!("classification (classes {})", present.join(", ")),
+        });
+    }
+    if intensity {
+        dropped.push("intensity".to_string());
+    }
+    if format.has_gps_time {
+        dropped.push("GPS time".to_string());
+    }
+    if format.has_color {
+        dropped.push("colour".to_string());
+    }
+    if format.has_nir {
+        dropped.push("NIR".to_string());
+    }
+    let note = (!dropped.is_empty()).then(|| {
+        let n = format.to_u8().map_or("?".to_string(), |n| n.to_string());
+        format!(
+            "a point set keeps x, y and z only: the {} of LAS point format {n} are not kept \
+             (a LAS/LAZ decoded from it has point format 0, or 6 with a CRS, and class 0)",
+            dropped.join(", ")
+        )
+    });
     let mut ps = PointSet::from_xyz(x, y, z)?;
     ps.epsg = epsg;
     ps.wkt = wkt;
-    Ok(ps)
+    Ok((ps, note))
 }
 
 /// The offset of one axis: the minimum rounded down to a multiple of 1000 (or of `scale`,

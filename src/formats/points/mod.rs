@@ -80,13 +80,30 @@ pub struct WriteReport {
     pub note: Option<String>,
 }
 
+/// What [`read_points_report`] has to tell the caller.
+#[derive(Clone, Debug, Default, PartialEq)]
+#[non_exhaustive]
+pub struct ReadReport {
+    /// Something the caller should print: what the file holds that a point set does not
+    /// keep (a LAS/LAZ file's classification, intensity, GPS time, colour). `None` when
+    /// nothing is left out.
+    pub note: Option<String>,
+}
+
 /// Read a point file, choosing the format by extension ([`PointFormat::from_path`]).
 ///
 /// Text is read line by line; LAS/LAZ in batches, never trusting the header's point count
-/// for an allocation. Errors name the file (and, for text, the line).
+/// for an allocation. Errors name the file (and, for text, the line). A LAS/LAZ class
+/// filter that keeps no point is an [`Error::Unmet`] naming the classes present.
 pub fn read_points(path: &Path, opts: &ReadPointsOptions) -> Result<PointSet> {
+    read_points_report(path, opts).map(|(ps, _)| ps)
+}
+
+/// [`read_points`], and what the file holds that the point set does not keep.
+pub fn read_points_report(path: &Path, opts: &ReadPointsOptions) -> Result<(PointSet, ReadReport)> {
     let format = format_of(path)?;
     let ctx = path.display().to_string();
+    let mut note = None;
     let mut ps = match format {
         PointFormat::Xyz | PointFormat::Csv => {
             if opts.class.is_some() {
@@ -97,14 +114,17 @@ pub fn read_points(path: &Path, opts: &ReadPointsOptions) -> Result<PointSet> {
             let f = std::fs::File::open(path).map_err(|e| Error::io(&ctx, e))?;
             xyz::read(std::io::BufReader::with_capacity(1 << 16, f))
         }
-        PointFormat::Las | PointFormat::Laz => las::read(path, opts.class),
+        PointFormat::Las | PointFormat::Laz => las::read(path, opts.class).map(|(ps, n)| {
+            note = n;
+            ps
+        }),
     }
     .map_err(|e| e.context(&ctx))?;
     if let Some(cols) = &opts.columns {
         select_columns(&mut ps, cols).map_err(|e| e.context(&ctx))?;
     }
     ps.validate().map_err(|e| e.context(&ctx))?;
-    Ok(ps)
+    Ok((ps, ReadReport { note }))
 }
 
 /// Write a point set, choosing the format by extension, atomically (a temporary sibling,
