@@ -5,6 +5,8 @@ crops of corpus rasters written by the vtz CLI in every format it reads.
     python3 fuzz/make_seeds.py [path/to/vtz]     # writes fuzz/corpus/<target>/
 """
 import os, random, struct, subprocess, sys, tempfile, glob
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import hostile  # noqa: E402  (fuzz/hostile.py: header-edited golden files)
 
 root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 vtz = sys.argv[1] if len(sys.argv) > 1 else os.path.join(root, "target/release/vtz")
@@ -142,6 +144,13 @@ with tempfile.TemporaryDirectory() as tmp:
         put("points", name + ".vtz", open(p, "rb").read())
     for p in glob.glob(os.path.join(root, "tests/golden/v3_*.vtz")):
         put("points", os.path.basename(p), open(p, "rb").read())
+    # Hostile headers: every golden file with its size (tile grid, point counts) edited and
+    # its mask or flat section made optional, checksums recomputed (fuzz/hostile.py).
+    for p in sorted(glob.glob(os.path.join(root, "tests/golden/*.vtz"))):
+        base = os.path.basename(p)[:-4]
+        target = "points" if base.startswith("v3_") else "container"
+        for name, b in hostile.variants(open(p, "rb").read()):
+            put(target, f"hostile_{base}.{name}.vtz", b)
     rng = random.Random(1)
     for i in range(16):
         n = rng.randrange(6, 400)

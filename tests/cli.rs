@@ -124,6 +124,38 @@ fn corrupt_input_gives_one_line_error_and_no_output() {
     assert_eq!(names.len(), 2, "{names:?}");
 }
 
+/// A file of 0 to 9 bytes (too short to say its version) decoded to a points output is
+/// corrupt input, as `info` says (exit 1, "truncated"), not "a raster file" (a usage error);
+/// a sound raster file to a points output stays a usage error (exit 2).
+#[test]
+fn a_short_file_to_points_is_truncated_not_a_raster() {
+    let d = tempfile::tempdir().unwrap();
+    let golden = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/golden/v1_kauai_crop_grid.vtz"
+    );
+    let bytes = std::fs::read(golden).unwrap();
+    let out = tmp(&d, "out.xyz");
+    for n in 0..10 {
+        let p = tmp(&d, &format!("short{n}.vtz"));
+        std::fs::write(&p, &bytes[..n]).unwrap();
+        let o = vtz(["decode", &p, "-o", &out]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{n} bytes: {err}");
+        assert!(err.contains("truncated"), "{n} bytes: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(!Path::new(&out).exists());
+    }
+    let p = tmp(&d, "junk.vtz");
+    std::fs::write(&p, b"hello").unwrap();
+    let o = vtz(["decode", &p, "-o", &out]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("not a vtz file"), "{}", stderr(&o));
+    let o = vtz(["decode", golden, "-o", &out]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("is a raster file"), "{}", stderr(&o));
+}
+
 #[test]
 fn usage_errors_exit_2() {
     let d = tempfile::tempdir().unwrap();

@@ -615,3 +615,54 @@ fn ahn3_ground_returns_hold_the_bound() {
         8 * bytes.len() / p.len()
     );
 }
+
+/// `vtz verify` checks a point set (version 3): checksums, a full decode, and each column's
+/// stored max error and rmse against its stored bound; a flipped payload byte or a stored
+/// max error over the bound fails it (exit 1).
+#[test]
+fn cli_verify_checks_a_point_set() {
+    let d = tempfile::tempdir().unwrap();
+    let golden = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/v3_points.vtz");
+    let o = vtz(["verify", golden]);
+    ok(&o);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("ok (point set") && text.contains("300 points"),
+        "{text}"
+    );
+    let j = common::json(&vtz(["verify", golden, "--json"]));
+    assert_eq!(j["ok"], true);
+    assert_eq!(j["point_set"], true);
+    assert_eq!(j["valid_samples"], 300);
+    assert_eq!(j["surfaces"][0]["type"], "z");
+    let bytes = std::fs::read(golden).unwrap();
+    let v = vtz::verify_points(&bytes, Default::default()).unwrap();
+    assert_eq!((v.valid, v.surfaces.len()), (300, 2));
+    // A byte of the last payload flipped.
+    let mut b = bytes.clone();
+    let l = b.len();
+    b[l - 3] ^= 0x10;
+    let p = tmp(&d, "flip.vtz");
+    std::fs::write(&p, &b).unwrap();
+    let o = vtz(["verify", &p]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("checksum"));
+    // Column 0 ("z", its record at 68: name_len, name, step, offset, bound, max_error,
+    // rmse) claims a max error of twice its bound; the header's checksum recomputed.
+    let mut b = bytes.clone();
+    assert_eq!(&b[68..70], b"\x01z");
+    let bound = f64::from_le_bytes(b[86..94].try_into().unwrap());
+    b[94..102].copy_from_slice(&(2.0 * bound).to_le_bytes());
+    let hend = 16 + u32::from_le_bytes(b[12..16].try_into().unwrap()) as usize;
+    let crc = crc32fast::hash(&b[..hend]);
+    b[hend..hend + 4].copy_from_slice(&crc.to_le_bytes());
+    let p = tmp(&d, "over.vtz");
+    std::fs::write(&p, &b).unwrap();
+    let o = vtz(["verify", &p]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("column 0 (z)") && text.contains("bound"),
+        "{text}"
+    );
+}

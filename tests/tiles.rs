@@ -429,3 +429,34 @@ fn metadata_goes_to_the_global_sections_and_comes_back() {
     assert_eq!(d.gdal_metadata, src.gdal_metadata);
     assert_eq!(bits(&d), bits(&src), "lossless");
 }
+
+/// The global directory holds metadata and GDAL metadata only (FORMAT.md, version 2): a
+/// flat section there (or a mask, or a representation) is corrupt, for decode and verify.
+#[test]
+fn a_global_directory_holds_only_metadata_sections() {
+    let (bytes, _) = tiled_file();
+    let hlen = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let dir = 20 + hlen;
+    assert_eq!(
+        u32::from_le_bytes(bytes[dir..dir + 4].try_into().unwrap()),
+        1
+    );
+    assert_eq!(u16::from_le_bytes([bytes[dir + 4], bytes[dir + 5]]), 7);
+    vtz::decode(&bytes).unwrap();
+    for (kind, flags) in [(9u16, 1u16), (9, 0), (1, 1), (6, 0), (0x8000, 0)] {
+        let mut b = bytes.clone();
+        b[dir + 4..dir + 6].copy_from_slice(&kind.to_le_bytes());
+        b[dir + 6..dir + 8].copy_from_slice(&flags.to_le_bytes());
+        let crc = crc32(&b[dir..dir + 4 + 16]);
+        b[dir + 20..dir + 24].copy_from_slice(&crc.to_le_bytes());
+        let m = corrupt_msg(&b);
+        assert!(m.contains("only metadata"), "type {kind}: {m}");
+        let e = Decoder::new(Cursor::new(&b))
+            .and_then(|mut d| d.verify())
+            .unwrap_err();
+        assert!(
+            matches!(e, Error::Corrupt { .. }),
+            "verify, type {kind}: {e}"
+        );
+    }
+}

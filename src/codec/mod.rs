@@ -19,7 +19,7 @@ pub use encode::EncodeReport;
 pub use options::{DecodeOptions, EncodeOptions, Scale, SectionChoice};
 pub use surface::Surface;
 pub use tiles::{DEFAULT_TILE, tile_count};
-pub use verify::Verified;
+pub use verify::{Verified, verify_points};
 
 use crate::container::tiled::{TiledReader, VERSION_TILED, peek_version};
 use crate::container::{ContainerReader, Limits, SF_REQUIRED};

@@ -277,9 +277,15 @@ impl<'a> PointsFile<'a> {
 
     /// The payload of the first section of type `kind` (checksum verified), if any.
     pub fn section(&self, kind: SectionKind) -> Result<Option<&'a [u8]>> {
-        let Some(e) = self.entries.iter().find(|e| e.kind == kind) else {
-            return Ok(None);
-        };
+        match self.entries.iter().position(|e| e.kind == kind) {
+            Some(i) => self.payload(i).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// The payload of directory entry `i` (checksum verified).
+    pub fn payload(&self, i: usize) -> Result<&'a [u8]> {
+        let e = &self.entries[i];
         let p = &self.bytes[e.offset as usize..(e.offset + e.length) as usize];
         if !super::checksum_ok(crc32fast::hash(p), &e.crc.to_le_bytes()) {
             return Err(Error::corrupt(format!(
@@ -287,7 +293,7 @@ impl<'a> PointsFile<'a> {
                 e.name
             )));
         }
-        Ok(Some(p))
+        Ok(p)
     }
 
     /// The payload of a section the file must have.

@@ -629,9 +629,11 @@ impl<R: Read + Seek> TiledReader<R> {
             names,
             "global sections",
         )?;
+        // Only metadata and GDAL metadata belong there (FORMAT.md): a mask, flat regions
+        // or a representation in the global directory would apply to no tile.
         if global
             .iter()
-            .any(|e| e.kind.may_be_primary() || e.kind == SectionKind::MASK)
+            .any(|e| !matches!(e.kind, SectionKind::METADATA | SectionKind::GDAL_METADATA))
         {
             return Err(Error::corrupt(
                 "global sections: only metadata sections belong there",

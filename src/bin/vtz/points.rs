@@ -266,6 +266,11 @@ pub fn decode_route(a: &decode::Args) -> Result<Option<Vec<u8>>> {
         return common::read_file(&a.input).map(Some);
     }
     if points_out {
+        // Only a file that opens as a raster is "a raster file": a truncated or foreign one
+        // gets the decoder's own error (corrupt input, exit 1), as `vtz info` says it.
+        let f = std::fs::File::open(&a.input)
+            .map_err(|e| Error::io(a.input.display().to_string(), e))?;
+        vtz::Decoder::new(std::io::BufReader::new(f)).map_err(|e| e.context(a.input.display()))?;
         return Err(Error::invalid(format!(
             "{} is a raster file: it decodes to a raster format (.tif, .png, .exr, .hgt, .asc, .f32), not to points",
             a.input.display()

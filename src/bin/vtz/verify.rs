@@ -21,6 +21,20 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     for f in &a.files {
         let res = ui.busy(&format!("verifying {}", f.display()), || check(f));
         match (&res, a.json) {
+            (Ok(v), false) if v.point_set => {
+                let cols: Vec<String> = v
+                    .surfaces
+                    .iter()
+                    .map(|(_, name, b)| format!("{name} ≤ {}", num(*b)))
+                    .collect();
+                outln!(
+                    "{}: ok (point set, {} sections: checksums, decodes, {} points, stored max errors within their bounds: {})",
+                    f.display(),
+                    v.sections,
+                    v.valid,
+                    cols.join(", ")
+                );
+            }
             (Ok(v), false) if v.tiles > 0 => {
                 let worst = v.surfaces.iter().map(|s| s.2).fold(0.0, f64::max);
                 outln!(
@@ -60,7 +74,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
                     "file": f, "ok": true, "sections": v.sections, "valid_samples": v.valid,
                     "surfaces": v.surfaces.iter().map(|(i, name, b)| serde_json::json!({
                         "index": i, "type": name, "max_error": b})).collect::<Vec<_>>(),
-                    "unknown_sections": v.unknown, "tiles": v.tiles,
+                    "unknown_sections": v.unknown, "tiles": v.tiles, "point_set": v.point_set,
                 })
             ),
             (Err(e), false) => outln!("{}: FAILED: {e}", f.display()),
@@ -81,6 +95,9 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
 }
 
 fn check(path: &PathBuf) -> Result<vtz::Verified> {
+    if crate::common::is_points_file(path)? {
+        return vtz::verify_points(&crate::common::read_file(path)?, Limits::default());
+    }
     let file =
         std::fs::File::open(path).map_err(|e| vtz::Error::io(path.display().to_string(), e))?;
     let mut d = vtz::Decoder::with_limits(std::io::BufReader::new(file), Limits::default())?;

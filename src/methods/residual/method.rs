@@ -38,8 +38,7 @@ impl Representation for Residual {
         Ok((payload, bound).into())
     }
     fn decode_full(&self, job: &DecodeJob) -> Result<Vec<f64>> {
-        let flat = job.flat.map(|f| f.dense());
-        decode(job.payload, job.header, job.mask, flat.as_deref())
+        decode(job.payload, job.header, job.mask, job.flat)
     }
     fn has_stats(&self) -> bool {
         true

@@ -16,6 +16,7 @@ mod weighted;
 pub(crate) use method::Residual;
 
 use crate::container::Header;
+use crate::container::flat::Flat;
 use crate::container::bytes::{ByteReader, PutLe};
 use crate::entropy::range::{Decoder, Encoder};
 use crate::error::{Error, Result};
@@ -479,13 +480,13 @@ fn read_varint(rd: &mut ByteReader) -> Result<u64> {
     Err(rd.corrupt("an exception gap is not a varint"))
 }
 
-/// Decode a residual payload. `fixed` holds the values of samples known by other means
-/// (flat regions), NaN elsewhere.
+/// Decode a residual payload. `flat` holds the samples known by other means (flat
+/// regions).
 pub(crate) fn decode(
     payload: &[u8],
     header: &Header,
     mask: Option<&[bool]>,
-    fixed: Option<&[f64]>,
+    flat: Option<&Flat>,
 ) -> Result<Vec<f64>> {
     let mut rd = ByteReader::new(payload, "residual section");
     let Head {
@@ -501,14 +502,26 @@ pub(crate) fn decode(
     } = read_head(&mut rd)?;
     let n = header.samples() as usize;
     let (w, h) = (header.width as usize, header.height as usize);
-    if fixed.is_some_and(|f| f.len() != n) || mask.is_some_and(|m| m.len() != n) {
+    if mask.is_some_and(|m| m.len() != n) {
         return Err(Error::corrupt("residual section: mask and raster sizes differ"));
     }
-    let kinds = kinds(n, mask, fixed);
-    let want = kinds.iter().filter(|&&k| k == CODED).count() as u64;
+    // The samples the header says the section codes are counted without allocating
+    // anything sized by the header: a header that claims more than the section codes is
+    // rejected before the planes are built.
+    let valid = |i: usize| mask.is_none_or(|m| m[i]);
+    let mut want = mask.map_or(n, |m| m.iter().filter(|&&v| v).count()) as u64;
+    for (s, l, _) in flat.into_iter().flat_map(Flat::runs) {
+        want -= (s..s + l).filter(|&i| valid(i)).count() as u64;
+    }
     if coded != want {
         return Err(rd.corrupt(format!("codes {coded} samples, the raster has {want}")));
     }
+    let fixed = flat.map(Flat::dense);
+    let fixed = fixed.as_deref();
+    if fixed.is_some_and(|f| f.len() != n) {
+        return Err(Error::corrupt("residual section: mask and raster sizes differ"));
+    }
+    let kinds = kinds(n, mask, fixed);
     let nf = match cfg {
         Predictor::Interp(_) => interp::NF,
         Predictor::Weighted => weighted::NF,

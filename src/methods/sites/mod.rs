@@ -100,8 +100,9 @@ struct SiteStream {
     prev_code: i64,
     hint: u32,
     /// A triangle last found in each cell of a coarse grid over the raster, to start point
-    /// location near the next site (consecutive sites of a level can be far apart).
-    cells: Vec<u32>,
+    /// location near the next site (consecutive sites of a level can be far apart). Only
+    /// the cells sites fell in are held, so its memory follows the sites, not the raster.
+    cells: std::collections::HashMap<usize, u32>,
     cells_w: usize,
     step: f64,
     offset: f64,
@@ -111,10 +112,10 @@ struct SiteStream {
 const CELL: usize = 32;
 
 impl SiteStream {
-    fn new(step: f64, offset: f64, (width, height): (usize, usize)) -> SiteStream {
+    fn new(step: f64, offset: f64, width: usize) -> SiteStream {
         let cells_w = width.div_ceil(CELL).max(1);
         SiteStream {
-            cells: vec![u32::MAX; cells_w * height.div_ceil(CELL).max(1)],
+            cells: std::collections::HashMap::new(),
             cells_w,
             pos: UIntModel::new(),
             height: IntModel::new(),
@@ -130,13 +131,11 @@ impl SiteStream {
     /// The predicted height code at `p`: the surface there, else the previous code.
     fn predict(&mut self, p: [i64; 2]) -> i64 {
         let cell = (p[1] as usize / CELL) * self.cells_w + p[0] as usize / CELL;
-        if let Some(&t) = self.cells.get(cell).filter(|&&t| t != u32::MAX) {
+        if let Some(&t) = self.cells.get(&cell).filter(|&&t| t != u32::MAX) {
             self.hint = t;
         }
         let v = self.surf.eval(p, &mut self.hint, &mut self.sc);
-        if let Some(c) = self.cells.get_mut(cell) {
-            *c = self.hint;
-        }
+        self.cells.insert(cell, self.hint);
         match v {
             Some(v) => code_of(v, self.step, self.offset),
             None => self.prev_code,
@@ -170,14 +169,7 @@ fn write_levels(
     let total: usize = levels.iter().map(|l| l.len()).sum();
     out.put_u32(total as u32);
     out.put_u32(levels.len() as u32);
-    let rows = levels
-        .iter()
-        .flatten()
-        .map(|s| s.0 as usize / width.max(1) + 1)
-        .max()
-        .unwrap_or(1);
-    let dims = (width, rows);
-    let mut st = SiteStream::new(step, offset, dims);
+    let mut st = SiteStream::new(step, offset, width);
     let mut streams = Vec::new();
     for level in levels {
         let mut enc = Encoder::new();
@@ -281,8 +273,7 @@ pub fn decode_sites(
         }
     }
     let width = header.width as usize;
-    let dims = (width, header.height as usize);
-    let mut st = SiteStream::new(step, offset, dims);
+    let mut st = SiteStream::new(step, offset, width);
     let mut sites = Vec::new();
     let mut levels = Vec::new();
     let want_sites = max_sites.unwrap_or(usize::MAX).max(first);
@@ -346,6 +337,46 @@ pub fn decode_sites(
     })
 }
 
+/// Check, from the sites alone and before anything sized by the window is allocated or
+/// evaluated, that the sites' hull covers every valid sample of `window`: since the hull is
+/// convex, it covers a row's valid samples when it holds the first and the last of them, and
+/// every sample of a window without a mask when it holds the window's four corners.
+fn check_cover(
+    d: &DecodedSites,
+    width: usize,
+    mask: Option<&[bool]>,
+    (x0, y0, w, h): (usize, usize, usize, usize),
+) -> Result<()> {
+    if w == 0 || h == 0 {
+        return Ok(());
+    }
+    let (mut hint, mut sc) = (u32::MAX, Scratch::default());
+    let mut inside = |x: usize, y: usize| {
+        d.surface
+            .eval([x as i64, y as i64], &mut hint, &mut sc)
+            .is_some()
+    };
+    let covered = match mask {
+        None => [(x0, y0), (x0 + w - 1, y0), (x0, y0 + h - 1), (x0 + w - 1, y0 + h - 1)]
+            .into_iter()
+            .all(|(x, y)| inside(x, y)),
+        Some(m) => (y0..y0 + h).all(|y| {
+            let row = &m[y * width + x0..y * width + x0 + w];
+            match (row.iter().position(|&v| v), row.iter().rposition(|&v| v)) {
+                (Some(a), Some(b)) => inside(x0 + a, y) && inside(x0 + b, y),
+                _ => true,
+            }
+        }),
+    };
+    if covered {
+        Ok(())
+    } else {
+        Err(Error::corrupt(
+            "sites section: the sites do not cover every valid sample",
+        ))
+    }
+}
+
 /// Evaluate decoded sites on a window of the raster (valid samples only), rounded to the
 /// output sample type. Invalid samples get the nodata fill. The window is split into bands
 /// of rows evaluated on up to `threads` threads; every value is a pure function of the
@@ -361,6 +392,7 @@ pub fn render(
     let (x0, y0, w, h) = window;
     let width = header.width as usize;
     let valid = |x: i64, y: i64| mask.is_none_or(|m| m[y as usize * width + x as usize]);
+    check_cover(d, width, mask, window)?;
     let threads = threads.clamp(1, 64).min(h.div_ceil(64).max(1));
     // Every thread writes its own chunks of rows straight into the output, taking the next
     // chunk from a shared counter (a window evaluates to exactly the samples of the whole,

@@ -1,0 +1,89 @@
+#!/usr/bin/env python3
+"""Hostile variants of the golden files: header and directory fields edited and the
+checksums recomputed (FORMAT.md: CRC-32 of [0, 16+H) and of the directory), so only the
+decoder's own checks stand between such a file and an allocation or a loop sized by the
+edited header. tests/hostile.rs makes the same edits in Rust and holds every one to a time
+and memory budget; make_seeds.py puts them in the fuzz seeds.
+
+    python3 fuzz/hostile.py OUT_DIR        # writes OUT_DIR/<golden>.<edit>.vtz
+"""
+import glob, os, struct, sys, zlib
+
+MASK, FLAT, PRIVATE = 1, 9, 0x8000
+
+
+def _dir_at(data):
+    """Offset of the (global) directory's section_count."""
+    return 20 + struct.unpack_from("<I", data, 12)[0]
+
+
+def _recrc(data):
+    hlen = struct.unpack_from("<I", data, 12)[0]
+    struct.pack_into("<I", data, 16 + hlen, zlib.crc32(bytes(data[:16 + hlen])))
+    pos = 20 + hlen
+    count = struct.unpack_from("<I", data, pos)[0]
+    end = pos + 4 + 16 * count
+    struct.pack_into("<I", data, end, zlib.crc32(bytes(data[pos:end])))
+    return bytes(data)
+
+
+def edited(data, fields=(), retype=()):
+    """`data` with header fields [(offset, struct format, value)] set and the directory
+    entries of the types in `retype` made private and not required; checksums recomputed."""
+    data = bytearray(data)
+    for off, fmt, v in fields:
+        struct.pack_into(fmt, data, off, v)
+    pos = _dir_at(data)
+    count = struct.unpack_from("<I", data, pos)[0]
+    for k in range(count):
+        at = pos + 4 + 16 * k
+        if struct.unpack_from("<H", data, at)[0] in retype:
+            struct.pack_into("<HH", data, at, PRIVATE, 0)
+    return _recrc(data)
+
+
+def variants(data):
+    """[(name, bytes)]: the hostile edits of one valid file."""
+    version = struct.unpack_from("<H", data, 8)[0]
+    hlen = struct.unpack_from("<I", data, 12)[0]
+    out = []
+    if version in (1, 2):
+        w, h = struct.unpack_from("<II", data, 16)
+        sizes = [(16384, 16384), (4096, 4096), (256, 256), (1 << 28, 1), (1, 1 << 28), (65536, 4096),
+                 (2 * w, h), (w, h + 1), (w + 1, h), (max(w - 1, 1), h)]
+        for (nw, nh) in sizes:
+            f = [(16, "<I", nw), (20, "<I", nh)]
+            out.append((f"size{nw}x{nh}", edited(data, f)))
+            out.append((f"size{nw}x{nh}.nomask", edited(data, f, (MASK,))))
+            out.append((f"size{nw}x{nh}.nomaskflat", edited(data, f, (MASK, FLAT))))
+        if version == 2:
+            # The tile fields end the header body: tile_width, tile_height, margin, index.
+            t = 16 + hlen - 28
+            for tw, th in ((16, 16), (w, 16), (16, h)):
+                out.append((f"tile{tw}x{th}", edited(data, [(t, "<I", tw), (t + 4, "<I", th)])))
+            out.append(("margin", edited(data, [(t + 8, "<I", 1 << 30)])))
+    elif version == 3:
+        points, positions = struct.unpack_from("<QQ", data, 16)
+        big = 1 << 27
+        for name, f in (("points", [(16, "<Q", big)]),
+                        ("positions", [(24, "<Q", big)]),
+                        ("both", [(16, "<Q", big), (24, "<Q", big)]),
+                        ("extent", [(60, "<I", (1 << 24) + 1), (64, "<I", (1 << 24) + 1)]),
+                        ("all", [(16, "<Q", big), (24, "<Q", big),
+                                 (60, "<I", (1 << 24) + 1), (64, "<I", (1 << 24) + 1)])):
+            out.append((name, edited(data, f)))
+    return out
+
+
+if __name__ == "__main__":
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    dest = sys.argv[1]
+    os.makedirs(dest, exist_ok=True)
+    n = 0
+    for p in sorted(glob.glob(os.path.join(root, "tests/golden/*.vtz"))):
+        base = os.path.basename(p)[:-4]
+        for name, b in variants(open(p, "rb").read()):
+            with open(os.path.join(dest, f"{base}.{name}.vtz"), "wb") as f:
+                f.write(b)
+            n += 1
+    print(n, "hostile files in", dest)
