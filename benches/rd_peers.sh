@@ -4,6 +4,7 @@
 # ../shared/tools/rastercmp.py. Writes CSV on stdout:
 #   raster,target,bound,bytes,bps,method,max_err,check
 # Usage: benches/rd_peers.sh VTZ_BINARY PYTHON_WITH_NUMPY [RASTER...] > vtz21.csv
+# BOUNDS="3% 10%" benches/rd_peers.sh … measures only those bounds.
 # (benches/rd_peers.py merges it with the peers harness CSV into the table in README.md.)
 set -euo pipefail
 vtz=$1; py=$2; shift 2
@@ -17,7 +18,7 @@ tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 echo "raster,target,bound,bytes,bps,method,max_err,check"
 for n in "${names[@]}"; do
   src=$corpus/$n.f32
-  for t in lossless 0.5 1 2 5 0.01% 0.03% 0.1% 0.3% 1% 3% 10%; do
+  for t in ${BOUNDS:-lossless 0.5 1 2 5 0.01% 0.03% 0.1% 0.3% 1% 3% 10%}; do
     if [ "$t" = lossless ]; then a=(--lossless); else a=(--max-error "$t"); fi
     j=$("$vtz" encode "$src" "${a[@]}" -o "$tmp/x.vtz" -f --json -q)
     bytes=$(echo "$j" | "$py" -c 'import json,sys; print(json.load(sys.stdin)["bytes"])')

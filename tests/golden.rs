@@ -307,6 +307,7 @@ fn the_residual_and_flat_golden_files_cover_both_predictors_and_every_new_coding
         .collect();
     assert_eq!(names[..2], [("mask", 1, true), ("flat", 9, true)]);
     assert_eq!(bytes[info.sections[0].offset as usize], 1, "mask coding 1");
+    assert_eq!(bytes[info.sections[1].offset as usize], 0, "flat coding 0");
     // Its sea decodes to exact zeros.
     let r = vtz::decode(&bytes).unwrap();
     let src = coast();
@@ -320,6 +321,69 @@ fn the_residual_and_flat_golden_files_cover_both_predictors_and_every_new_coding
         sea > 1400 && kept >= 1024 && kept + 60 >= sea,
         "{kept} of {sea} sea samples exact"
     );
+}
+
+/// The flat section's coding 1 (8×8 blocks): a 128×96 window of Kauai's coast with voids
+/// and 6 191 samples of sea, residual within 8 m. The sea's whole blocks decode to exact
+/// zeros; the older coding-0 file (`v1_kauai_coast_flat`) still decodes as it did.
+#[test]
+fn the_block_coded_flat_golden_file_decodes_to_its_expected_samples() {
+    let name = "v1_kauai_coast_flat_blocks";
+    let vtz_path = dir().join(format!("{name}.vtz"));
+    let exp_path = dir().join(format!("{name}.expected.f32"));
+    let src = window_of(368, 928, 128, 96);
+    if !vtz_path.exists() {
+        assert!(
+            std::env::var_os("VTZ_BLESS_GOLDEN").is_some(),
+            "{} is missing (VTZ_BLESS_GOLDEN=1 writes it)",
+            vtz_path.display()
+        );
+        let bytes = vtz::encode(
+            &src,
+            &encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(8.0))),
+        )
+        .unwrap();
+        std::fs::write(&vtz_path, &bytes).unwrap();
+        std::fs::write(&exp_path, as_f32_bytes(&vtz::decode(&bytes).unwrap())).unwrap();
+    }
+    let bytes = std::fs::read(&vtz_path).unwrap();
+    let info = vtz::info(&bytes, vtz::Limits::default()).unwrap();
+    let names: Vec<_> = info
+        .sections
+        .iter()
+        .map(|s| (s.name.as_str(), s.code))
+        .collect();
+    assert_eq!(names[..2], [("mask", 1), ("flat", 9)]);
+    assert_eq!(bytes[info.sections[1].offset as usize], 1, "flat coding 1");
+    let r = vtz::decode(&bytes).unwrap();
+    assert_eq!(
+        as_f32_bytes(&r),
+        std::fs::read(&exp_path).unwrap(),
+        "{name}: decoded samples differ"
+    );
+    let c = vtz::metrics::compare(&src, &r).unwrap();
+    assert_eq!((c.lost, c.invented), (0, 0));
+    assert!(c.max_error <= 8.0, "{}", c.max_error);
+    // Every sea sample of a whole 8×8 block of sea decodes to exactly 0.
+    let w = src.width;
+    let whole = |i: usize| {
+        let (x0, y0) = ((i % w) / 8 * 8, (i / w) / 8 * 8);
+        (y0..y0 + 8)
+            .all(|y| (x0..x0 + 8).all(|x| src.is_valid(y * w + x) && src.data[y * w + x] == 0.0))
+    };
+    let blocks: Vec<usize> = (0..src.len()).filter(|&i| whole(i)).collect();
+    assert!(
+        blocks.len() > 4096,
+        "{} samples in sea blocks",
+        blocks.len()
+    );
+    assert!(blocks.iter().all(|&i| r.data[i] == 0.0));
+    for n in 0..bytes.len() {
+        assert!(
+            vtz::decode(&bytes[..n]).is_err(),
+            "prefix of {n} bytes decoded"
+        );
+    }
 }
 
 /// The version-2 golden file: a 96×64 window of Kauai's coast (voids, sea, land) cut into

@@ -156,11 +156,13 @@ fn decimal_lattice_floats_are_lossless_and_smaller_than_the_grid() {
     check(&r, &back, 0.0, "below half a step");
 }
 
-/// Samples of 4-connected equal-valued components of at least 1024 valid samples that
-/// touch no other such component: the flat regions as a user sees them (computed here
-/// independently of the library).
+/// The flat samples as the encoder keeps them (spec/FORMAT.md, "Flat section", computed
+/// here independently of the library): aligned 8×8 blocks (clipped at the edges) wholly
+/// inside one 4-connected equal-valued component of at least 4096 valid samples, less the
+/// blocks touching a kept block of another component, in pieces of at least 1024 samples.
 fn flat_samples(r: &Raster) -> Vec<usize> {
     let (w, n) = (r.width, r.len());
+    let h = n / w;
     let mut comp = vec![usize::MAX; n];
     let mut sizes = Vec::new();
     for s in 0..n {
@@ -196,23 +198,69 @@ fn flat_samples(r: &Raster) -> Vec<usize> {
         }
         sizes.push(size);
     }
-    let big = |i: usize| comp[i] != usize::MAX && sizes[comp[i]] >= 1024;
-    (0..n)
-        .filter(|&i| {
-            big(i) && {
-                let x = i % w;
-                let nb = [
-                    (x > 0).then(|| i - 1),
-                    (x + 1 < w).then(|| i + 1),
-                    (i >= w).then(|| i - w),
-                    (i + w < n).then(|| i + w),
-                ];
-                nb.into_iter()
-                    .flatten()
-                    .all(|j| !big(j) || comp[j] == comp[i])
-            }
+    let (bw, bh) = (w.div_ceil(8), h.div_ceil(8));
+    let samples_of = |b: usize| -> Vec<usize> {
+        let (x0, y0) = ((b % bw) * 8, (b / bw) * 8);
+        (y0..(y0 + 8).min(h))
+            .flat_map(|y| (x0..(x0 + 8).min(w)).map(move |x| y * w + x))
+            .collect()
+    };
+    let block: Vec<Option<usize>> = (0..bw * bh)
+        .map(|b| {
+            let s = samples_of(b);
+            let c = comp[s[0]];
+            (c != usize::MAX && sizes[c] >= 4096 && s.iter().all(|&i| comp[i] == c)).then_some(c)
         })
-        .collect()
+        .collect();
+    let touches = |b: usize| {
+        let (bx, by) = (b % bw, b / bw);
+        [
+            (bx > 0).then(|| b - 1),
+            (bx + 1 < bw).then(|| b + 1),
+            (by > 0).then(|| b - bw),
+            (by + 1 < bh).then(|| b + bw),
+        ]
+        .into_iter()
+        .flatten()
+        .any(|j| block[j].is_some_and(|c| Some(c) != block[b]))
+    };
+    let kept: Vec<bool> = (0..bw * bh)
+        .map(|b| block[b].is_some() && !touches(b))
+        .collect();
+    // Pieces of 4-connected kept blocks, each of at least 1024 samples.
+    let mut seen = vec![false; bw * bh];
+    let mut out = Vec::new();
+    for b0 in 0..bw * bh {
+        if !kept[b0] || seen[b0] {
+            continue;
+        }
+        seen[b0] = true;
+        let (mut piece, mut stack) = (vec![], vec![b0]);
+        while let Some(b) = stack.pop() {
+            piece.push(b);
+            let (bx, by) = (b % bw, b / bw);
+            for j in [
+                (bx > 0).then(|| b - 1),
+                (bx + 1 < bw).then(|| b + 1),
+                (by > 0).then(|| b - bw),
+                (by + 1 < bh).then(|| b + bw),
+            ]
+            .into_iter()
+            .flatten()
+            {
+                if kept[j] && !seen[j] {
+                    seen[j] = true;
+                    stack.push(j);
+                }
+            }
+        }
+        let s: Vec<usize> = piece.into_iter().flat_map(samples_of).collect();
+        if s.len() >= 1024 {
+            out.extend(s);
+        }
+    }
+    out.sort_unstable();
+    out
 }
 
 #[test]
@@ -234,6 +282,23 @@ fn flat_regions_decode_exactly_under_every_method() {
     ] {
         let flat = flat_samples(&r);
         assert!(flat.len() > 5000, "{name}: {} flat samples", flat.len());
+        // The encoder keeps exactly these samples (their count is the section's flat count,
+        // offset 8 of its payload): the lake's and the sea's whole blocks.
+        let bytes = vtz::encode(
+            &r,
+            &encode_opts(&[Method::RESIDUAL], Some(ErrorBound::PercentOfRange(10.0))),
+        )
+        .unwrap();
+        let info = vtz::info(&bytes, vtz::Limits::default()).unwrap();
+        let f = info
+            .sections
+            .iter()
+            .find(|s| s.code == 9)
+            .expect("flat section");
+        let p = f.offset as usize;
+        assert_eq!(bytes[p], 1, "{name}: coding 1");
+        let count = u64::from_le_bytes(bytes[p + 8..p + 16].try_into().unwrap());
+        assert_eq!(count, flat.len() as u64, "{name}: flat count");
         let range = r.valid_range().unwrap();
         for m in [
             Method::SIBSON,

@@ -240,6 +240,26 @@ fn a_raster_within_one_tile_stays_version_1() {
     assert_eq!(u16::from_le_bytes([b[8], b[9]]), 1);
 }
 
+#[test]
+fn the_default_tiles_by_sample_count_not_by_one_side() {
+    // The global DEM, 4320 × 2161 (9.3 M samples): wider than 4096 but smaller than
+    // a 4096² raster, which stays whole; it stays whole too (its 10 % file was 6 % larger in
+    // 15 tiles). No raster is made: the decision is by size alone.
+    let opts = encode_opts(&[], Some(ErrorBound::PercentOfRange(10.0)));
+    assert_eq!(vtz::tile_count(4320, 2161, &opts), 1);
+    assert_eq!(vtz::tile_count(4096, 4096, &opts), 1);
+    assert_eq!(vtz::tile_count(100_000, 160, &opts), 1);
+    // Above 4096² samples the default tiles, whatever the shape.
+    assert!(vtz::tile_count(4097, 4096, &opts) > 1);
+    assert!(vtz::tile_count(2000, 9000, &opts) > 1);
+    // An explicit side still tiles a small raster, and 0 never tiles.
+    let mut o = opts.clone();
+    o.tile = Some(1024);
+    assert!(vtz::tile_count(4320, 2161, &o) > 1);
+    o.tile = Some(0);
+    assert_eq!(vtz::tile_count(5000, 5000, &o), 1);
+}
+
 fn tiled_file() -> (Vec<u8>, vtz::TilesInfo) {
     let src = source();
     let mut o = tiled_opts(&[], Some(2.0), 40, 0);

@@ -29,8 +29,8 @@ pub struct EncodeOptions {
     pub metadata: Option<String>,
     /// Tile side in samples: a raster larger than this in either direction is cut into
     /// tiles that encode and decode independently (container version 2). `None` = tiles of
-    /// [`DEFAULT_TILE`](crate::DEFAULT_TILE) for rasters larger than 4096 in either
-    /// direction, else untiled; `Some(0)` = never tile (version 1).
+    /// [`DEFAULT_TILE`](crate::DEFAULT_TILE) for rasters of more than 4096² samples
+    /// (whatever their shape), else untiled; `Some(0)` = never tile (version 1).
     pub tile: Option<u32>,
     /// Threads for a tiled encode (0 = what the machine offers); the bytes are the same
     /// for every value.

@@ -19,12 +19,15 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 /// small while a tile decodes in milliseconds.
 pub const DEFAULT_TILE: u32 = 1024;
 
-/// Unless a tile side is given, a raster this large or smaller in both directions stays
-/// untiled: tiles of 1024² cost 3–9 % of the bytes at 0.3–1 % of the range and 16–31 % at
-/// 10 % on 1201²–2400² rasters (each tile's framing, index entry, method header, context
-/// learning and margins; benches/README.md, "Tiles"), which buys a raster that fits in
-/// memory little a user would notice. Larger rasters need tiles for memory.
-pub const DEFAULT_UNTILED_MAX: u32 = 4096;
+/// Unless a tile side is given, a raster of this many samples or fewer stays untiled,
+/// whatever its shape: tiles of 1024² cost 3–9 % of the bytes at 0.3–1 % of the range and
+/// 16–31 % at 10 % on 1201²–2400² rasters (each tile's framing, index entry, method header,
+/// context learning and margins; benches/README.md, "Tiles"), and 6 % at 10 % on a
+/// 4320 × 2161 raster, which buys a raster that fits in memory little a user would notice.
+/// What tiling buys, memory bounded by the tiles in flight, depends on the sample count
+/// alone (an untiled encode holds the raster and per-sample state), so the threshold is one
+/// of samples, not of a side: 4096², the largest raster that stayed whole before.
+pub const DEFAULT_UNTILED_MAX_SAMPLES: u64 = 4096 * 4096;
 
 /// Samples each tile codes beyond its borders, across which a decoder blends neighbouring
 /// tiles (spec/FORMAT.md, "Blending"): 8 makes the error change over 16 samples instead of
@@ -64,7 +67,7 @@ pub(crate) fn tiled(w: usize, h: usize, opts: &EncodeOptions) -> bool {
     let t = match opts.tile {
         Some(t) => t as usize,
         None if whole_file_options(opts) => return false,
-        None if w <= DEFAULT_UNTILED_MAX as usize && h <= DEFAULT_UNTILED_MAX as usize => {
+        None if (w as u64).saturating_mul(h as u64) <= DEFAULT_UNTILED_MAX_SAMPLES => {
             return false;
         }
         None => DEFAULT_TILE as usize,

@@ -6,16 +6,69 @@
 use super::bitmap;
 use super::bytes::{ByteReader, PutLe};
 use crate::error::Result;
-use crate::model::flat::label;
+use crate::model::flat::{BLOCK, label};
 
 /// Coding 0: the bitmap of valid samples, range coded with neighbour contexts.
 const CODING_CONTEXT: u8 = 0;
+/// Coding 1: the same bitmap over aligned [`BLOCK`]² blocks (a block is flat or not as a
+/// whole), coded for the blocks whose samples are all valid.
+const CODING_BLOCKS: u8 = 1;
+
+/// Per block of a `w × h` raster (row-major, `w.div_ceil(BLOCK)` wide) whether all its
+/// samples are valid per `mask`.
+fn blocks_valid(w: usize, h: usize, mask: Option<&[bool]>) -> Vec<bool> {
+    let (bw, bh) = (w.div_ceil(BLOCK), h.div_ceil(BLOCK));
+    let mut ok = vec![true; bw * bh];
+    if let Some(m) = mask {
+        for (i, &v) in m.iter().enumerate().take(w * h) {
+            if !v {
+                ok[(i / w / BLOCK) * bw + (i % w) / BLOCK] = false;
+            }
+        }
+    }
+    ok
+}
 
 /// Encode the flat regions `values` (per sample its region's value, NaN elsewhere; only
-/// valid samples per `mask` may be flat) of a `w`-wide raster.
+/// valid samples per `mask` may be flat) of a `w`-wide raster with coding 1. The flat
+/// samples must be whole aligned [`BLOCK`]² blocks of valid samples (as
+/// `model::flat::find` keeps them).
 pub fn encode(values: &[f64], w: usize, mask: Option<&[bool]>) -> Vec<u8> {
     let flat: Vec<bool> = values.iter().map(|v| !v.is_nan()).collect();
-    let (lab, count) = label(&flat, w);
+    let h = flat.len() / w.max(1);
+    let bw = w.div_ceil(BLOCK);
+    let blocks: Vec<bool> = (0..bw * h.div_ceil(BLOCK))
+        .map(|b| flat[(b / bw) * BLOCK * w + (b % bw) * BLOCK])
+        .collect();
+    debug_assert!(
+        (0..flat.len()).all(|i| flat[i] == blocks[(i / w / BLOCK) * bw + (i % w) / BLOCK]),
+        "flat samples are whole blocks"
+    );
+    let valid = blocks_valid(w, h, mask);
+    header(&flat, values, w, CODING_BLOCKS, |out| {
+        out.extend_from_slice(&bitmap::encode(&blocks, bw, |b| valid[b]));
+    })
+}
+
+#[cfg(test)]
+/// Encode with coding 0 (the bitmap of every valid sample): what files before coding 1
+/// hold; kept for the tests of that coding.
+pub fn encode_samples(values: &[f64], w: usize, mask: Option<&[bool]>) -> Vec<u8> {
+    let flat: Vec<bool> = values.iter().map(|v| !v.is_nan()).collect();
+    header(&flat, values, w, CODING_CONTEXT, |out| {
+        out.extend_from_slice(&bitmap::encode(&flat, w, |i| mask.is_none_or(|m| m[i])));
+    })
+}
+
+/// The section's fields before the bitmap, then the bitmap `stream` writes.
+fn header(
+    flat: &[bool],
+    values: &[f64],
+    w: usize,
+    coding: u8,
+    stream: impl FnOnce(&mut Vec<u8>),
+) -> Vec<u8> {
+    let (lab, count) = label(flat, w);
     let mut region_values = vec![0f64; count as usize];
     for (i, &l) in lab.iter().enumerate() {
         if l != 0 {
@@ -23,7 +76,7 @@ pub fn encode(values: &[f64], w: usize, mask: Option<&[bool]>) -> Vec<u8> {
         }
     }
     let mut out = Vec::new();
-    out.put_u8(CODING_CONTEXT);
+    out.put_u8(coding);
     out.put_u8(0);
     out.put_u8(0);
     out.put_u8(0);
@@ -33,7 +86,7 @@ pub fn encode(values: &[f64], w: usize, mask: Option<&[bool]>) -> Vec<u8> {
     for v in region_values {
         out.put_f64(v);
     }
-    out.extend_from_slice(&bitmap::encode(&flat, w, |i| mask.is_none_or(|m| m[i])));
+    stream(&mut out);
     out
 }
 
@@ -99,7 +152,7 @@ impl Flat {
 pub fn decode(payload: &[u8], w: usize, n: usize, mask: Option<&[bool]>) -> Result<Flat> {
     let mut r = ByteReader::new(payload, "flat section");
     let coding = r.u8("coding")?;
-    if coding != CODING_CONTEXT {
+    if coding != CODING_CONTEXT && coding != CODING_BLOCKS {
         return Err(r.corrupt(format!("flat coding {coding} is not defined")));
     }
     for _ in 0..3 {
@@ -131,7 +184,19 @@ pub fn decode(payload: &[u8], w: usize, n: usize, mask: Option<&[bool]>) -> Resu
         return Err(r.corrupt("mask size differs"));
     }
     let stream = r.take(r.remaining(), "bitmap")?;
-    let flat = bitmap::decode(stream, w, n, |i| mask.is_none_or(|m| m[i]))?;
+    let flat = if coding == CODING_CONTEXT {
+        bitmap::decode(stream, w, n, |i| mask.is_none_or(|m| m[i]))?
+    } else {
+        // n = w·h was checked against the limits before this section was read, and the
+        // blocks are fewer than the samples.
+        let h = if w == 0 { 0 } else { n / w };
+        let bw = w.div_ceil(BLOCK);
+        let valid = blocks_valid(w, h, mask);
+        let blocks = bitmap::decode(stream, bw, valid.len(), |b| valid[b])?;
+        (0..n)
+            .map(|i| blocks[(i / w / BLOCK) * bw + (i % w) / BLOCK])
+            .collect()
+    };
     let seen = flat.iter().filter(|&&b| b).count() as u64;
     if seen != flat_count {
         return Err(r.corrupt(format!(
@@ -179,7 +244,8 @@ mod tests {
                 }
             }
         }
-        let p = encode(&v, w, None);
+        let p = encode_samples(&v, w, None);
+        assert_eq!(p[0], CODING_CONTEXT);
         let flat = decode(&p, w, w * h, None).unwrap();
         let back = flat.dense();
         for (i, (a, b)) in v.iter().zip(&back).enumerate() {
@@ -211,12 +277,73 @@ mod tests {
         let mut mask = vec![true; w * h];
         mask[w * h - 1] = false;
         v[w * h - 1] = f64::NAN;
-        let p = encode(&v, w, Some(&mask));
+        let p = encode_samples(&v, w, Some(&mask));
         let back = decode(&p, w, w * h, Some(&mask)).unwrap().dense();
         for (a, b) in v.iter().zip(&back) {
             assert!(a == b || (a.is_nan() && b.is_nan()));
         }
         // The wrong sample count is rejected.
         assert!(decode(&p, w, w * h - 1, None).is_err());
+    }
+
+    /// A jagged shore of a sea of 0 and a lake: the flat samples as `model::flat::find`
+    /// keeps them (whole aligned blocks) decode exactly from coding 1, whose bitmap is under
+    /// half that of coding 0 of the same samples; a nodata sample keeps its block
+    /// out of every region and costs no bit.
+    #[test]
+    fn block_coding_round_trips_and_is_cheaper_than_per_sample() {
+        let (w, h) = (203, 157);
+        // Per sample: sea left of a jagged shore, a lake at 12.5 in a box.
+        let shore = |y: usize| 60 + (y * 7919 % 13) + (y / 9) % 5;
+        let mut v = vec![f64::NAN; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                if x < shore(y) {
+                    v[y * w + x] = 0.0;
+                } else if (120..190).contains(&x) && (30..140).contains(&y) {
+                    v[y * w + x] = 12.5;
+                }
+            }
+        }
+        let mut mask = vec![true; w * h];
+        mask[100 * w + 150] = false;
+        // The blocks wholly in one region (and valid), as the encoder keeps them.
+        let bw = w.div_ceil(BLOCK);
+        let block_of = |i: usize| (i / w / BLOCK) * bw + (i % w) / BLOCK;
+        let mut whole = vec![true; bw * h.div_ceil(BLOCK)];
+        for i in 0..w * h {
+            let first = (block_of(i) / bw) * BLOCK * w + (block_of(i) % bw) * BLOCK;
+            if v[i].is_nan() || !mask[i] || v[i] != v[first] {
+                whole[block_of(i)] = false;
+            }
+        }
+        let kept: Vec<f64> = (0..w * h)
+            .map(|i| if whole[block_of(i)] { v[i] } else { f64::NAN })
+            .collect();
+        let p = encode(&kept, w, Some(&mask));
+        assert_eq!(p[0], CODING_BLOCKS);
+        let back = decode(&p, w, w * h, Some(&mask)).unwrap().dense();
+        for (a, b) in kept.iter().zip(&back) {
+            assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));
+        }
+        // The nodata sample's block and the lake's partial blocks are out; the rest is in.
+        assert!(back[100 * w + 150].is_nan() && back[100 * w + 148].is_nan());
+        assert!(back[40 * w + 185].is_nan() && back[40 * w + 121] == 12.5 && back[0] == 0.0);
+        // Coding 0 of the same samples, and of the whole regions.
+        let samples = encode_samples(&kept, w, Some(&mask));
+        let whole_regions = encode_samples(&v, w, Some(&mask));
+        assert!(
+            2 * (p.len() - 40) < samples.len() - 40 && p.len() < whole_regions.len(),
+            "coding 1: {} bytes, coding 0: {} (whole regions {})",
+            p.len(),
+            samples.len(),
+            whole_regions.len()
+        );
+        for cut in 0..p.len() {
+            assert!(
+                decode(&p[..cut], w, w * h, Some(&mask)).is_err(),
+                "prefix {cut}"
+            );
+        }
     }
 }

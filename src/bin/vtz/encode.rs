@@ -64,8 +64,8 @@ pub struct Args {
     #[arg(long)]
     pub json: bool,
     /// Cut a raster larger than N samples in either direction into tiles of at most N × N
-    /// that encode on all cores and decode alone (0 = never). Default: rasters larger than
-    /// 4096 in either direction are cut into tiles of about 1024.
+    /// that encode on all cores and decode alone (0 = never). Default: rasters of more than
+    /// 4096² samples (whatever their shape) are cut into tiles of about 1024.
     #[arg(long, value_name = "N")]
     pub tile: Option<u32>,
     /// Threads for a tiled encode (default: all cores); the file is the same for any count.
