@@ -370,8 +370,9 @@ fn cli_rejects_bad_rows_and_bad_options_with_clear_errors() {
     let d = tempfile::tempdir().unwrap();
     let (inp, f) = (tmp(&d, "a.xyz"), tmp(&d, "a.vtz"));
     write(&inp, "1 2 3\n4 5 6\n7 8 nan\n");
+    // A bad row is corrupt input (exit 1); bad options below are usage errors (exit 2).
     let o = vtz(["encode", &inp, "-o", &f, "--max-error", "0.1"]);
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("line 3"), "{}", stderr(&o));
     assert!(!std::path::Path::new(&f).exists(), "no output on error");
     write(&inp, &xyz_text(50));
