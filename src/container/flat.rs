@@ -189,7 +189,7 @@ pub fn decode(payload: &[u8], w: usize, n: usize, mask: Option<&[bool]>) -> Resu
     } else {
         // n = w·h was checked against the limits before this section was read, and the
         // blocks are fewer than the samples.
-        let h = if w == 0 { 0 } else { n / w };
+        let h = n.checked_div(w).unwrap_or(0);
         let bw = w.div_ceil(BLOCK);
         let valid = blocks_valid(w, h, mask);
         let blocks = bitmap::decode(stream, bw, valid.len(), |b| valid[b])?;
