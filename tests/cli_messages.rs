@@ -322,3 +322,22 @@ fn interrupted_encode_leaves_nothing() {
     assert!(stderr(&o).contains("interrupted"), "{}", stderr(&o));
     assert_eq!(entries(), Vec::<String>::new(), "left behind");
 }
+
+/// The README's Python commands create `.venv/` in the checkout: git ignores it, so a new
+/// user's `git status` stays clean.
+#[test]
+fn the_readme_venv_is_ignored() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    assert!(
+        readme.contains("python3 -m venv .venv"),
+        "the README no longer makes .venv"
+    );
+    let ignore = std::fs::read_to_string(root.join(".gitignore")).unwrap();
+    assert!(
+        ignore
+            .lines()
+            .any(|l| matches!(l.trim(), ".venv/" | ".venv" | "/.venv/" | "/.venv")),
+        ".gitignore does not ignore .venv/"
+    );
+}
