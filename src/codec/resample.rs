@@ -14,7 +14,7 @@
 //! the result is the same for any thread count.
 
 use super::options::Scale;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::model::{Georef, Raster, RasterType};
 
 /// The output size of a `w × h` raster scaled by `s`: ⌊w·s⌋ × ⌊h·s⌋ (GDAL truncates
@@ -150,10 +150,7 @@ pub(crate) fn resample(
         }
     } else {
         use rayon::prelude::*;
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .map_err(|e| Error::unsupported(format!("cannot start {threads} threads: {e}")))?;
+        let pool = crate::methods::thread_pool(threads)?;
         pool.install(|| {
             ys.par_iter()
                 .zip(data.par_chunks_mut(ow))

@@ -47,10 +47,7 @@ pub(crate) fn threads_for(n: usize) -> usize {
 }
 
 fn pool(threads: usize) -> Result<rayon::ThreadPool> {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads_for(threads))
-        .build()
-        .map_err(|e| Error::unsupported(format!("cannot start {threads} threads: {e}")))
+    crate::methods::thread_pool(threads_for(threads))
 }
 
 /// Options that are whole-file notions: a size target, comparison sections, a site count

@@ -424,6 +424,15 @@ pub(crate) fn with_threads<T>(n: usize, f: impl FnOnce() -> T) -> T {
     out
 }
 
+/// A rayon pool of `n` threads (the codec's tiles, resampling and the sites' renderer
+/// each run in one of these, so a caller's thread count is kept whatever the global pool).
+pub(crate) fn thread_pool(n: usize) -> Result<rayon::ThreadPool> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .map_err(|e| Error::unsupported(format!("cannot start {n} threads: {e}")))
+}
+
 /// The thread limit [`with_threads`] set on this thread, if any.
 pub(crate) fn thread_budget() -> Option<usize> {
     THREAD_BUDGET.with(|c| c.get())

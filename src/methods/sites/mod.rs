@@ -560,10 +560,7 @@ pub fn render_scaled(
         }
     } else {
         use rayon::prelude::*;
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .map_err(|e| Error::unsupported(format!("cannot start {threads} threads: {e}")))?;
+        let pool = crate::methods::thread_pool(threads)?;
         pool.install(|| {
             out.par_chunks_mut(chunk)
                 .zip(out_mask.par_chunks_mut(chunk))
