@@ -4,6 +4,7 @@
 //! adaptive arithmetic coder of the sites section will live here too.
 
 pub mod range;
+pub mod rans;
 pub mod varint;
 
 use crate::error::{Error, Result};
