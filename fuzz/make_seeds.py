@@ -70,9 +70,13 @@ with tempfile.TemporaryDirectory() as tmp:
                 body = struct.pack("<H", len(js)) + js + body
             put("readers", f"{name}.{fmt}", bytes([pick]) + body)
         for m, bound in (("sibson", "2%"), ("sibson", "1"), ("grid", "0"), ("grid", "1"), ("haar", "3"), ("fis", "5%"),
-                         ("residual", "0"), ("residual", "1"), ("residual", "2%")):
+                         ("residual", "0"), ("residual", "1"), ("residual", "2%"),
+                         # effort 9: the compact range-coded codings (the default is the fast one)
+                         ("residual-e9", "0"), ("residual-e9", "1"), ("residual-e9", "2%")):
             p = os.path.join(tmp, f"{name}_{m}_{bound.strip('%')}.vtz")
-            args = ["encode", crop, "-o", p, "--method", m, "--force", "-q"]
+            args = ["encode", crop, "-o", p, "--method", m.split("-")[0], "--force", "-q"]
+            if m.endswith("-e9"):
+                args += ["--effort", "9"]
             if bound != "0":
                 args += ["--max-error", bound]
             try:

@@ -89,7 +89,8 @@ fn cases() -> Vec<(&'static str, EncodeOptions, f64, Option<&'static str>)> {
             Some(GDAL_METADATA),
         ),
         (
-            // Effort 1 takes the rule's predictor: lossless → the weighted scan.
+            // Written when effort 1 took the rule's predictor (lossless → the weighted scan;
+            // effort 1 now writes the fast coding: golden files are never re-blessed).
             "v1_kauai_crop_residual",
             {
                 let mut o = encode_opts(&[Method::RESIDUAL], None);
@@ -112,6 +113,23 @@ fn cases() -> Vec<(&'static str, EncodeOptions, f64, Option<&'static str>)> {
             None,
         ),
         (
+            // The fast coding (coding 2, effort 1), lossless, with stencil weights.
+            "v1_kauai_crop_residual_fast",
+            effort(encode_opts(&[Method::RESIDUAL], None), 1),
+            0.0,
+            None,
+        ),
+        (
+            // The fast coding with narrower coarse-level bins (coding 3).
+            "v1_kauai_crop_residual_fast_tight",
+            effort(
+                encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(60.0))),
+                1,
+            ),
+            60.0,
+            None,
+        ),
+        (
             // Wide bins: the encoder narrows them on coarse levels (coding 1).
             "v1_kauai_crop_residual_tight",
             encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(60.0))),
@@ -125,6 +143,26 @@ fn cases() -> Vec<(&'static str, EncodeOptions, f64, Option<&'static str>)> {
             None,
         ),
     ]
+}
+
+/// Whether golden file `path` is missing and may be written (with VTZ_BLESS_GOLDEN set;
+/// without it a missing golden file fails the test).
+fn missing(path: &Path) -> bool {
+    if path.exists() {
+        return false;
+    }
+    assert!(
+        std::env::var_os("VTZ_BLESS_GOLDEN").is_some(),
+        "{} is missing (VTZ_BLESS_GOLDEN=1 writes it)",
+        path.display()
+    );
+    true
+}
+
+/// `o` with effort `k`.
+fn effort(mut o: EncodeOptions, k: u8) -> EncodeOptions {
+    o.effort = Some(k);
+    o
 }
 
 /// The source of golden file `name`.
@@ -280,6 +318,22 @@ fn the_residual_and_flat_golden_files_cover_both_predictors_and_every_new_coding
     }
     predictors.sort();
     predictors.dedup();
+    // The fast files: codings 2 (with stencil weights) and 3.
+    for (name, coding, weighted) in [
+        ("v1_kauai_crop_residual_fast", 2, true),
+        ("v1_kauai_crop_residual_fast_tight", 3, false),
+    ] {
+        let bytes = read(name);
+        let info = vtz::info(&bytes, vtz::Limits::default()).unwrap();
+        let p = info.sections[info.primary].offset as usize;
+        assert_eq!((bytes[p], bytes[p + 1]), (coding, 0), "{name}");
+        assert_eq!(
+            bytes[p + 3] > 0,
+            weighted,
+            "{name}: weight sets {}",
+            bytes[p + 3]
+        );
+    }
     // The tight file narrows coarse-level bins (coding 1).
     let bytes = read("v1_kauai_crop_residual_tight");
     let info = vtz::info(&bytes, vtz::Limits::default()).unwrap();
@@ -332,12 +386,7 @@ fn the_block_coded_flat_golden_file_decodes_to_its_expected_samples() {
     let vtz_path = dir().join(format!("{name}.vtz"));
     let exp_path = dir().join(format!("{name}.expected.f32"));
     let src = window_of(368, 928, 128, 96);
-    if !vtz_path.exists() {
-        assert!(
-            std::env::var_os("VTZ_BLESS_GOLDEN").is_some(),
-            "{} is missing (VTZ_BLESS_GOLDEN=1 writes it)",
-            vtz_path.display()
-        );
+    if missing(&vtz_path) {
         let bytes = vtz::encode(
             &src,
             &encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(8.0))),
@@ -386,6 +435,54 @@ fn the_block_coded_flat_golden_file_decodes_to_its_expected_samples() {
     }
 }
 
+/// The fast coding's bands: the whole Kauai tile (1201², voids, sea) within 20 m, whose
+/// finest passes are cut into 3 and 2 bands of rows. Its 1.4 M decoded samples are pinned
+/// by the CRC-32 of their f32 bytes (`.expected.crc32`), not stored.
+#[test]
+fn the_banded_fast_golden_file_decodes_to_its_expected_samples() {
+    let name = "v1_kauai_residual_fast_bands";
+    let vtz_path = dir().join(format!("{name}.vtz"));
+    let exp_path = dir().join(format!("{name}.expected.crc32"));
+    let src = read_corpus("srtm3_N22W160_kauai.hgt");
+    let crc = |r: &vtz::Raster| format!("{:08x}\n", crc32fast::hash(&as_f32_bytes(r)));
+    if missing(&vtz_path) {
+        let bytes = vtz::encode(
+            &src,
+            &effort(
+                encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(20.0))),
+                1,
+            ),
+        )
+        .unwrap();
+        std::fs::write(&vtz_path, &bytes).unwrap();
+        std::fs::write(&exp_path, crc(&vtz::decode(&bytes).unwrap())).unwrap();
+    }
+    let bytes = std::fs::read(&vtz_path).unwrap();
+    let info = vtz::info(&bytes, vtz::Limits::default()).unwrap();
+    let p = info.sections[info.primary].offset as usize;
+    assert_eq!(bytes[p], 3, "coding 3");
+    for threads in [1, 2] {
+        let r = vtz::decode_with(&bytes, &decode_opts(|o| o.threads = threads)).unwrap();
+        assert_eq!(
+            crc(&r),
+            std::fs::read_to_string(&exp_path).unwrap(),
+            "{name}: decoded samples differ ({threads} threads)"
+        );
+        let c = vtz::metrics::compare(&src, &r).unwrap();
+        assert_eq!((c.lost, c.invented), (0, 0));
+        assert!(c.max_error <= 20.0, "{}", c.max_error);
+    }
+    for n in (0..bytes.len())
+        .step_by(61)
+        .chain(bytes.len() - 40..bytes.len())
+    {
+        assert!(
+            vtz::decode(&bytes[..n]).is_err(),
+            "prefix of {n} bytes decoded"
+        );
+    }
+}
+
 /// The version-2 golden file: a 96×64 window of Kauai's coast (voids, sea, land) cut into
 /// 3 × 2 tiles of 32², each coded by `best` within 8 m, with metadata and GDAL metadata in
 /// the global sections.
@@ -394,12 +491,7 @@ fn the_tiled_golden_file_decodes_to_its_expected_samples() {
     let name = "v2_kauai_tiles";
     let vtz_path = dir().join(format!("{name}.vtz"));
     let exp_path = dir().join(format!("{name}.expected.f32"));
-    if !vtz_path.exists() {
-        assert!(
-            std::env::var_os("VTZ_BLESS_GOLDEN").is_some(),
-            "{} is missing (VTZ_BLESS_GOLDEN=1 writes it)",
-            vtz_path.display()
-        );
+    if missing(&vtz_path) {
         let mut src = window_of(360, 952, 96, 64);
         src.gdal_metadata = Some(GDAL_METADATA.into());
         let mut opts = encode_opts(&[], Some(ErrorBound::Abs(8.0)));
@@ -512,12 +604,7 @@ fn the_point_set_golden_file_decodes_to_its_expected_points() {
     let name = "v3_points";
     let vtz_path = dir().join(format!("{name}.vtz"));
     let exp_path = dir().join(format!("{name}.expected.csv"));
-    if !vtz_path.exists() {
-        assert!(
-            std::env::var_os("VTZ_BLESS_GOLDEN").is_some(),
-            "{} is missing (VTZ_BLESS_GOLDEN=1 writes it)",
-            vtz_path.display()
-        );
+    if missing(&vtz_path) {
         let bytes = points_encode();
         let p = vtz::decode_points(&bytes, &vtz::DecodePoints::new()).unwrap();
         std::fs::write(&vtz_path, &bytes).unwrap();

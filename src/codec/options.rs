@@ -37,7 +37,8 @@ pub struct EncodeOptions {
     pub threads: usize,
     /// Encoder effort 1..=9, speed against size, as JPEG XL and zstd users know it; `None`
     /// = [`DEFAULT_EFFORT`](crate::DEFAULT_EFFORT). Read by the methods that have choices to
-    /// make (the residual layer); decoding speed does not depend on it.
+    /// make (the residual layer: 1–2 its fast coding alone, 3–5 its range-coded
+    /// predictors, 6–9 both).
     pub effort: Option<u8>,
 }
 

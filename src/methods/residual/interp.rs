@@ -57,7 +57,7 @@ pub fn level_bin(w: i64, l: u32) -> i64 {
 
 /// 1-D interpolation at the middle of `b` and `c` from the support −3s, −s, +s, +3s.
 #[inline]
-fn interp1(a: Option<i64>, b: i64, c: Option<i64>, d: Option<i64>) -> i64 {
+pub fn interp1(a: Option<i64>, b: i64, c: Option<i64>, d: Option<i64>) -> i64 {
     match (a, c, d) {
         (Some(a), Some(c), Some(d)) => round_div(-a + 9 * b + 9 * c - d, 16),
         (None, Some(c), Some(d)) => round_div(3 * b + 6 * c - d, 8),

@@ -6,6 +6,7 @@
 //! integer until the one lattice-to-value formula (spec/FORMAT.md, residual section).
 
 mod coder;
+mod fast;
 mod interp;
 mod lattice;
 mod ls;
@@ -29,6 +30,10 @@ use plane::{CODED, FIXED, Plane, SKIPPED};
 const CODING_LATTICE: u8 = 0;
 /// As [`CODING_LATTICE`], with narrower bins on coarse interpolation levels.
 const CODING_LATTICE_TIGHT: u8 = 1;
+/// The fast coding: interpolation, static rANS tokens, streams per band of rows.
+const CODING_FAST: u8 = 2;
+/// As [`CODING_FAST`], with narrower bins on coarse levels.
+const CODING_FAST_TIGHT: u8 = 3;
 const PRED_INTERP: u8 = 0;
 const PRED_WEIGHTED: u8 = 1;
 /// Bytes before the stencil weights.
@@ -39,11 +44,14 @@ const MAX_LEVELS: u8 = 12;
 const LS_LEVELS: u32 = 3;
 /// What the encoder reckons one exception costs, in bits (a gap and a float).
 const EXCEPTION_BITS: f64 = 48.0;
+/// The fast coding narrows coarse-level bins from bins of this many lattice steps.
+const FAST_TIGHT_FROM: i64 = 21;
 /// Sub-lattice refinements the encoder considers (bins of (2·⌊d·E/q⌋+1)/d steps).
 const MAX_SUBDIVISION: i64 = 16;
 
-/// The encoder effort without `--effort`. What each effort does in the residual layer:
-/// 1–2 one predictor chosen by rule, 3+ both predictors tried, 5+ also sub-lattice bins.
+/// The encoder effort without `--effort`. What each effort does in the residual layer
+/// ([`codings`]): 1–2 the fast coding, 3+ both range-coded predictors, 5+ also sub-lattice
+/// bins and narrower coarse bins, 6+ also the fast coding; the smallest kept.
 pub const DEFAULT_EFFORT: u8 = 5;
 
 /// One way of coding the plane.
@@ -51,6 +59,8 @@ pub const DEFAULT_EFFORT: u8 = 5;
 enum Predictor {
     Interp(interp::Config),
     Weighted,
+    /// The fast coding (codings 2 and 3).
+    Fast(fast::Config),
 }
 
 /// What the encoder settled on, before coding.
@@ -116,7 +126,7 @@ pub(crate) fn encode(
             ls_levels: LS_LEVELS.min(levels),
             tighten: false,
         };
-        move |bin: i64| interp_or_weighted(cfg, bin, effort)
+        move |bin: i64| codings(cfg, bin, effort)
     };
     // Lossy coding may need a safety margin for the final rounding to the sample type;
     // try without first, and the encoder checks the bound on the decoder's values.
@@ -195,26 +205,39 @@ pub(crate) fn encode(
     }))
 }
 
-/// Which predictors to try: both from effort 3; below, multilevel interpolation where bins
-/// are wide (it wins from about a bin of 3 lattice steps) and the weighted scan where the
-/// coding is lossless on the lattice (bins of 1).
-/// From effort 5, interpolation with narrower coarse-level bins too (SZ3's α/β: it gains
-/// at wide bins and loses at narrow ones, so the encoder tries both).
-fn interp_or_weighted(cfg: interp::Config, bin: i64, effort: u8) -> Vec<Predictor> {
-    let interp = Predictor::Interp(cfg);
+/// Which codings to try. Efforts 1–2: the fast coding alone, narrower coarse-level bins
+/// from bins of 21 lattice steps up (measured on White Mountains, Half Dome and Crater
+/// Lake: they lose at bins of ~11 and win from ~31) and stencil corrections where the
+/// encoder reckons they pay. Efforts 3–4: the two range-coded predictors (multilevel
+/// interpolation, the weighted scan); 5 (the default) also interpolation with narrower
+/// coarse bins when bins are ≥ 3 steps (SZ3's α/β: it gains at wide bins and loses at
+/// narrow ones). Efforts 6–9: all of those and both bin layouts of the fast coding. The
+/// smallest wins.
+fn codings(cfg: interp::Config, bin: i64, effort: u8) -> Vec<Predictor> {
+    let fast = |tighten| {
+        Predictor::Fast(fast::Config {
+            levels: cfg.levels,
+            ls_levels: cfg.ls_levels,
+            tighten,
+            band_log2: fast::DEFAULT_BAND_LOG2,
+        })
+    };
+    let rule = bin >= FAST_TIGHT_FROM;
+    if effort <= 2 {
+        return vec![fast(rule)];
+    }
+    let mut v = vec![Predictor::Interp(cfg)];
     if effort >= 5 && bin >= 3 {
-        let tight = Predictor::Interp(interp::Config {
+        v.push(Predictor::Interp(interp::Config {
             tighten: true,
             ..cfg
-        });
-        vec![interp, tight, Predictor::Weighted]
-    } else if effort >= 3 {
-        vec![interp, Predictor::Weighted]
-    } else if bin == 1 {
-        vec![Predictor::Weighted]
-    } else {
-        vec![interp]
+        }));
     }
+    v.push(Predictor::Weighted);
+    if effort > DEFAULT_EFFORT {
+        v.extend([fast(rule), fast(!rule)]);
+    }
+    v
 }
 
 /// The lattice, units and bin width for bound `e`; `None` when there is nothing to try.
@@ -322,7 +345,25 @@ fn code(p: &Plane, pred: Predictor, s: &Setup, exceptions: &[u8]) -> Result<(Vec
         m: Models::new(),
         enc: Encoder::with_capacity(p.kinds.len() / 4),
     };
+    if let Predictor::Fast(cfg) = pred {
+        let (weights, body, rec) = fast::encode(p, cfg)?;
+        let mut out = fixed_fields(
+            if cfg.tighten { CODING_FAST_TIGHT } else { CODING_FAST },
+            PRED_INTERP,
+            cfg.levels as u8,
+            weights.len() as u8,
+            p,
+            s,
+        );
+        for w in weights.iter().flatten() {
+            out.extend_from_slice(&w.to_le_bytes());
+        }
+        out.extend_from_slice(exceptions);
+        out.extend_from_slice(&body);
+        return Ok((out, rec));
+    }
     let (code, levels, weights, st) = match pred {
+        Predictor::Fast(_) => unreachable!("coded above"),
         Predictor::Interp(cfg) => {
             let mut wts = Vec::new();
             let st = interp::run(p, cfg, &mut wts, &mut c)?;
@@ -336,17 +377,29 @@ fn code(p: &Plane, pred: Predictor, s: &Setup, exceptions: &[u8]) -> Result<(Vec
             (PRED_WEIGHTED, 0, (wts.len(), flat), st)
         }
     };
-    let coded = p.kinds.iter().filter(|&&k| k == CODED).count() as u64;
-    let mut out = Vec::new();
     let tight = matches!(pred, Predictor::Interp(c) if c.tighten);
-    out.put_u8(if tight {
+    let coding = if tight {
         CODING_LATTICE_TIGHT
     } else {
         CODING_LATTICE
-    });
-    out.put_u8(code);
+    };
+    let mut out = fixed_fields(coding, code, levels, weights.0 as u8, p, s);
+    for w in &weights.1 {
+        out.extend_from_slice(&w.to_le_bytes());
+    }
+    out.extend_from_slice(exceptions);
+    out.extend_from_slice(&c.enc.finish());
+    Ok((out, st.rec))
+}
+
+/// The section's first [`FIXED_LEN`] bytes (max error 0: the encoder sets it once checked).
+fn fixed_fields(coding: u8, pred: u8, levels: u8, weight_sets: u8, p: &Plane, s: &Setup) -> Vec<u8> {
+    let coded = p.kinds.iter().filter(|&&k| k == CODED).count() as u64;
+    let mut out = Vec::new();
+    out.put_u8(coding);
+    out.put_u8(pred);
     out.put_u8(levels);
-    out.put_u8(weights.0 as u8);
+    out.put_u8(weight_sets);
     out.put_u32(s.exceptions.len() as u32);
     out.put_f64(s.domain.mul);
     out.put_f64(s.domain.div);
@@ -357,12 +410,7 @@ fn code(p: &Plane, pred: Predictor, s: &Setup, exceptions: &[u8]) -> Result<(Vec
     out.put_u64(p.hi as u64);
     out.put_u64(coded);
     debug_assert_eq!(out.len(), FIXED_LEN);
-    for w in &weights.1 {
-        out.extend_from_slice(&w.to_le_bytes());
-    }
-    out.extend_from_slice(exceptions);
-    out.extend_from_slice(&c.enc.finish());
-    Ok((out, st.rec))
+    out
 }
 
 /// The fixed fields of a residual payload, checked.
@@ -381,9 +429,10 @@ struct Head {
 /// Read and check the fixed fields (the reader is left at the stencil weights).
 fn read_head(rd: &mut ByteReader) -> Result<Head> {
     let coding = rd.u8("coding")?;
-    if coding != CODING_LATTICE && coding != CODING_LATTICE_TIGHT {
+    if coding > CODING_FAST_TIGHT {
         return Err(rd.corrupt(format!("coding {coding} is not defined")));
     }
+    let fast = coding >= CODING_FAST;
     let pred = rd.u8("predictor")?;
     let levels = rd.u8("levels")?;
     let weight_sets = rd.u8("weight sets")? as usize;
@@ -395,11 +444,21 @@ fn read_head(rd: &mut ByteReader) -> Result<Head> {
             if weight_sets % 2 != 0 || weight_sets > 2 * levels.min(4) as usize {
                 return Err(rd.corrupt(format!("{weight_sets} weight sets for {levels} levels")));
             }
+            if fast {
+                Predictor::Fast(fast::Config {
+                    levels: levels as u32,
+                    ls_levels: weight_sets as u32 / 2,
+                    tighten: coding == CODING_FAST_TIGHT,
+                    // Read with the streams.
+                    band_log2: 0,
+                })
+            } else {
             Predictor::Interp(interp::Config {
                 levels: levels as u32,
                 ls_levels: weight_sets as u32 / 2,
                 tighten: coding == CODING_LATTICE_TIGHT,
             })
+            }
         }
         PRED_WEIGHTED => {
             if coding != CODING_LATTICE {
@@ -525,6 +584,7 @@ pub(crate) fn decode(
     let nf = match cfg {
         Predictor::Interp(_) => interp::NF,
         Predictor::Weighted => weighted::NF,
+        Predictor::Fast(_) => fast::NW,
     };
     let mut flat_w = Vec::with_capacity(nweights * nf);
     for _ in 0..nweights * nf {
@@ -551,7 +611,6 @@ pub(crate) fn decode(
         exc.push((i as usize, v));
         next = i + 1;
     }
-    let stream = rd.take(rd.remaining(), "bins")?;
     let mut values = vec![0i64; n];
     if let Some(f) = fixed {
         for (i, &v) in f.iter().enumerate() {
@@ -569,13 +628,23 @@ pub(crate) fn decode(
         hi,
         bin: bin as i64,
     };
+    // The narrowest bins (tightened coarse levels) allow the largest bins.
+    let max_bin = ((hi - lo) as u64) / narrowest(cfg, bin as i64) as u64 + 1;
+    let rec = if let Predictor::Fast(f) = cfg {
+        let wts: Vec<[i16; fast::NW]> = flat_w
+            .chunks_exact(fast::NW)
+            .map(|c| c.try_into().expect("NW weights"))
+            .collect();
+        fast::decode(&mut rd, &p, f.levels, f.tighten, &wts, max_bin)?
+    } else {
+    let stream = rd.take(rd.remaining(), "bins")?;
     let mut c = BinDecoder {
         m: Models::new(),
         dec: Decoder::new(stream)?,
-        // The narrowest bins (tightened coarse levels) allow the largest bins.
-        max_bin: ((hi - lo) as u64) / narrowest(cfg, bin as i64) as u64 + 1,
+        max_bin,
     };
     let st = match cfg {
+        Predictor::Fast(_) => unreachable!("decoded above"),
         Predictor::Interp(cfg) => {
             let mut wts: Vec<[i16; interp::NF]> = flat_w
                 .chunks_exact(interp::NF)
@@ -592,12 +661,14 @@ pub(crate) fn decode(
         }
     };
     c.dec.finish()?;
+    st.rec
+    };
     let fill = header.nodata.unwrap_or(f64::NAN);
     let mut out: Vec<f64> = (0..n)
         .map(|i| match kinds[i] {
             SKIPPED => fill,
             FIXED => fixed.map_or(fill, |f| f[i]),
-            _ => finish_value(domain.raw(st.rec[i]), header),
+            _ => finish_value(domain.raw(rec[i]), header),
         })
         .collect();
     for (i, v) in exc {
@@ -606,10 +677,32 @@ pub(crate) fn decode(
     Ok(out)
 }
 
+/// The narrowest bin width of an interpolation coding with `levels` levels.
+#[cfg(test)]
+fn narrowest_bin(bin: i64, levels: u32, tighten: bool) -> i64 {
+    narrowest(
+        Predictor::Interp(interp::Config {
+            levels,
+            ls_levels: 0,
+            tighten,
+        }),
+        bin,
+    )
+}
+
 /// The narrowest bin width any sample of the section uses.
 fn narrowest(cfg: Predictor, bin: i64) -> i64 {
     match cfg {
-        Predictor::Interp(c) if c.tighten => (1..=c.levels + 1)
+        Predictor::Interp(interp::Config {
+            levels,
+            tighten: true,
+            ..
+        })
+        | Predictor::Fast(fast::Config {
+            levels,
+            tighten: true,
+            ..
+        }) => (1..=levels + 1)
             .map(|l| interp::level_bin(bin, l))
             .min()
             .unwrap_or(bin),
@@ -625,6 +718,7 @@ pub(crate) fn describe(payload: &[u8]) -> Result<(&'static str, u32, f64, u64, f
     let (name, levels) = match h.cfg {
         Predictor::Interp(c) => ("interpolation", c.levels),
         Predictor::Weighted => ("weighted", 0),
+        Predictor::Fast(c) => ("fast interpolation", c.levels),
     };
     Ok((name, levels, h.domain.unit(), h.bin, h.bound))
 }
