@@ -2,7 +2,8 @@
 //!
 //! `cargo bench --bench residual` — samples/s as throughput. Istria 2400² (the crate's
 //! corpus, 5.76 M samples) and, with `../shared/corpus`, the 1201² White Mountains tile;
-//! lossless, 1 m and 1 % of the range, at the default effort and at effort 1. benches/README.md
+//! lossless, 1 m and 1 % of the range, at effort 1 (the fast coding) and at the default
+//! effort (the range-coded predictors). benches/README.md
 //! ("Residual layer: speed") has the table, beside SZ3 measured in the same run.
 
 #[path = "../tests/common/mod.rs"]
