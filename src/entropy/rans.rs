@@ -19,9 +19,9 @@ pub const TOTAL: u32 = 1 << PREC;
 /// The state's lower bound; a stream starts (encoder) and ends (decoder) in this state.
 pub const LOW: u32 = 1 << 16;
 
-/// Frequencies (summing to [`TOTAL`]) from counts; every symbol with a count gets at least
-/// 1. All counts 0 gives the one-symbol table `[TOTAL]`. Trailing zero frequencies are cut,
-/// so the last frequency is never 0.
+/// Frequencies (summing to [`TOTAL`]) from counts; every symbol with a count gets at
+/// least one slot. All counts 0 give the one-symbol table `[TOTAL]`. Trailing zero
+/// frequencies are cut, so the last frequency is never 0.
 pub fn normalize(counts: &[u64]) -> Vec<u32> {
     let n: u64 = counts.iter().sum();
     let last = counts.iter().rposition(|&c| c > 0);
@@ -447,14 +447,14 @@ mod tests {
         for t in &tables {
             write_table(&mut w, t);
         }
-        w.put(0x1234_5678_9a, 40);
+        w.put(0x0012_3456_789a, 40);
         w.put(1, 1);
         let bytes = w.finish();
         let mut r = BitReader::new(&bytes, "tables");
         for t in &tables {
             assert_eq!(&read_table(&mut r, 90).unwrap(), t);
         }
-        assert_eq!(r.get(40).unwrap(), 0x1234_5678_9a);
+        assert_eq!(r.get(40).unwrap(), 0x0012_3456_789a);
         assert_eq!(r.get(1).unwrap(), 1);
         r.finish().unwrap();
         // Cut short, something fails to read.

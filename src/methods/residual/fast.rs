@@ -669,10 +669,13 @@ fn cluster(counts: &[[u64; ALPHABET]]) -> (Vec<u8>, Vec<[u64; ALPHABET]>) {
     (map, out)
 }
 
+/// What [`encode`] returns: stencil weights, the coding's bytes, the reconstruction.
+pub type Encoded = (Vec<[i16; NW]>, Vec<u8>, Vec<i64>);
+
 /// Encode the plane: the stencil weights (per pass with a correction, coarsest first), the
 /// fast coding's bytes (after the section's fixed fields, weights and exceptions) and the
 /// reconstruction.
-pub fn encode(p: &Plane, cfg: Config) -> Result<(Vec<[i16; NW]>, Vec<u8>, Vec<i64>)> {
+pub fn encode(p: &Plane, cfg: Config) -> Result<Encoded> {
     let (w, h) = (p.width, p.height);
     let n = w * h;
     let mut rec = vec![0i64; n];
