@@ -98,6 +98,8 @@ pub struct Flat {
     /// (first sample index, length, region), sorted by index; a run never crosses a row.
     runs: Vec<(u64, u32, u32)>,
     values: Vec<f64>,
+    /// The raster's samples (for [`Flat::dense`]).
+    #[cfg(test)]
     n: usize,
 }
 
@@ -116,7 +118,8 @@ impl Flat {
             .map(|&(s, l, r)| (s as usize, l as usize, self.values[r as usize]))
     }
 
-    /// Per sample its region's value, NaN elsewhere (for a method that reads the values).
+    /// Per sample its region's value, NaN elsewhere.
+    #[cfg(test)]
     pub fn dense(&self) -> Vec<f64> {
         let mut v = vec![f64::NAN; self.n];
         for (s, l, x) in self.runs() {
@@ -223,7 +226,12 @@ pub fn decode(payload: &[u8], w: usize, n: usize, mask: Option<&[bool]>) -> Resu
             }
         }
     }
-    Ok(Flat { runs, values, n })
+    Ok(Flat {
+        runs,
+        values,
+        #[cfg(test)]
+        n,
+    })
 }
 
 #[cfg(test)]

@@ -249,12 +249,11 @@ struct Global<'a> {
     lo: i64,
     hi: i64,
     all_coded: bool,
-    rec: &'a [i64],
-    mag: &'a [u8],
 }
 
 impl<'a> Global<'a> {
-    fn new(p: &Plane<'a>, all_coded: bool, rec: &'a [i64], mag: &'a [u8]) -> Global<'a> {
+    /// `kinds` empty: every sample is coded.
+    fn new(p: &Plane<'a>) -> Global<'a> {
         Global {
             w: p.width,
             h: p.height,
@@ -262,17 +261,84 @@ impl<'a> Global<'a> {
             values: p.values,
             lo: p.lo,
             hi: p.hi,
-            all_coded,
-            rec,
-            mag,
+            all_coded: p.kinds.is_empty() || p.kinds.iter().all(|&k| k == CODED),
         }
     }
 }
 
-/// A band's reconstructions and bin magnitudes (min(|bin|, 255)), pass row by pass row.
-struct Band {
-    rec: Vec<i64>,
-    mag: Vec<u8>,
+/// Where a band reads and writes: reconstructions and bin magnitudes (min(|bin|, 255)) of
+/// earlier passes by sample index i, and of its own samples by band index j (pass row by
+/// pass row) or sample index.
+trait Store {
+    fn rec(&self, i: usize) -> i64;
+    fn mag(&self, i: usize) -> u8;
+    fn own_rec(&self, j: usize, i: usize) -> i64;
+    fn own_mag(&self, j: usize, i: usize) -> u8;
+    fn set(&mut self, j: usize, i: usize, r: i64, m: u8);
+}
+
+/// A band coded beside others: reads the shared planes, writes buffers of its own (then
+/// [`scatter`]ed into the planes).
+struct Apart<'a> {
+    rec: &'a [i64],
+    mag: &'a [u8],
+    brec: Vec<i64>,
+    bmag: Vec<u8>,
+}
+
+impl Store for Apart<'_> {
+    #[inline(always)]
+    fn rec(&self, i: usize) -> i64 {
+        self.rec[i]
+    }
+    #[inline(always)]
+    fn mag(&self, i: usize) -> u8 {
+        self.mag[i]
+    }
+    #[inline(always)]
+    fn own_rec(&self, j: usize, _: usize) -> i64 {
+        self.brec[j]
+    }
+    #[inline(always)]
+    fn own_mag(&self, j: usize, _: usize) -> u8 {
+        self.bmag[j]
+    }
+    #[inline(always)]
+    fn set(&mut self, j: usize, _: usize, r: i64, m: u8) {
+        self.brec[j] = r;
+        self.bmag[j] = m;
+    }
+}
+
+/// The bands of a pass coded one after the other on one thread: straight into the planes
+/// (the same reads as [`Apart`]: a band never reads another band's samples).
+struct InPlace<'a> {
+    rec: &'a mut [i64],
+    mag: &'a mut [u8],
+}
+
+impl Store for InPlace<'_> {
+    #[inline(always)]
+    fn rec(&self, i: usize) -> i64 {
+        self.rec[i]
+    }
+    #[inline(always)]
+    fn mag(&self, i: usize) -> u8 {
+        self.mag[i]
+    }
+    #[inline(always)]
+    fn own_rec(&self, _: usize, i: usize) -> i64 {
+        self.rec[i]
+    }
+    #[inline(always)]
+    fn own_mag(&self, _: usize, i: usize) -> u8 {
+        self.mag[i]
+    }
+    #[inline(always)]
+    fn set(&mut self, _: usize, i: usize, r: i64, m: u8) {
+        self.rec[i] = r;
+        self.mag[i] = m;
+    }
 }
 
 /// Per pass constants of the contexts.
@@ -332,22 +398,27 @@ fn curvature(a: Option<i64>, b: i64, c: Option<i64>, d: Option<i64>) -> i64 {
 /// The stencil correction: base + round(Σ f_k·w_k / 2^10), f_k = rec[i + o_k] − base for
 /// the coarser points and `own[k] − base` for the pass's own (0 where `None`).
 #[inline(always)]
-fn corrected(
-    rec: &[i64],
+///
+/// The stencil's first four points are the support b, c, a, d (`bcad`, already read); an
+/// own point that does not count is given as `base`.
+fn corrected<S: Store>(
+    st: &S,
     i: usize,
     offs: &[isize; NW],
     wts: &[i16; NW],
-    own: [Option<i64>; 2],
+    bcad: [i64; 4],
+    own: [i64; 2],
     base: i64,
 ) -> i64 {
     let mut acc = 0i64;
-    for k in 0..NCOARSE {
-        acc += (rec[(i as isize + offs[k]) as usize] - base) * wts[k] as i64;
+    for k in 0..4 {
+        acc += (bcad[k] - base) * wts[k] as i64;
     }
-    for (v, wk) in own.iter().zip(&wts[NCOARSE..]) {
-        if let Some(v) = v {
-            acc += (v - base) * *wk as i64;
-        }
+    for k in 4..NCOARSE {
+        acc += (st.rec((i as isize + offs[k]) as usize) - base) * wts[k] as i64;
+    }
+    for k in 0..2 {
+        acc += (own[k] - base) * wts[NCOARSE + k] as i64;
     }
     base + ((acc + 512) >> 10)
 }
@@ -419,12 +490,15 @@ fn fit(p: &Plane, pass: Pass) -> Option<[i16; NW]> {
 }
 
 /// Run the pass rows k0..k1 of `pass`.
-fn run_band<C: SymCoder>(g: &Global, pass: Pass, (k0, k1): (usize, usize), coder: &mut C) -> Result<Band> {
+fn run_band<C: SymCoder, S: Store>(
+    g: &Global,
+    pass: Pass,
+    (k0, k1): (usize, usize),
+    coder: &mut C,
+    st: &mut S,
+) -> Result<()> {
     let (w, h) = (g.w, g.h);
     let cols = pass.cols(w);
-    let n = (k1 - k0) * cols;
-    let mut rec = vec![0i64; n];
-    let mut mag = vec![0u8; n];
     let cx = Ctxs {
         bin: pass.bin,
         hl_bin: half_log(pass.bin as u64),
@@ -433,18 +507,20 @@ fn run_band<C: SymCoder>(g: &Global, pass: Pass, (k0, k1): (usize, usize), coder
     let s = pass.s;
     match pass.kind {
         Kind::Anchor => {
+            let big = s;
             let mid = g.lo + (g.hi - g.lo) / 2;
             for k in k0..k1 {
                 let y = pass.r0 + k * pass.rs;
                 let row = (k - k0) * cols;
                 for col in 0..cols {
                     let x = pass.c0 + col * pass.cs;
-                    let j = row + col;
-                    let up = (k > k0).then(|| j - cols);
-                    let left = (col > 0).then(|| rec[j - 1]);
-                    let top = up.map(|u| rec[u]);
-                    let tl = up.filter(|_| col > 0).map(|u| rec[u - 1]);
-                    let tr = up.filter(|_| col + 1 < cols).map(|u| rec[u + 1]);
+                    let (i, j) = (y * w + x, row + col);
+                    let up = k > k0;
+                    let left = (col > 0).then(|| st.own_rec(j - 1, i - big));
+                    let top = up.then(|| st.own_rec(j - cols, i - big * w));
+                    let tl = (up && col > 0).then(|| st.own_rec(j - cols - 1, i - big * w - big));
+                    let tr =
+                        (up && col + 1 < cols).then(|| st.own_rec(j - cols + 1, i - big * w + big));
                     let a = left.or(top).unwrap_or(mid);
                     let b = top.unwrap_or(a);
                     let c = tl.unwrap_or(a);
@@ -457,14 +533,15 @@ fn run_band<C: SymCoder>(g: &Global, pass: Pass, (k0, k1): (usize, usize), coder
                         a + b - c
                     };
                     let t = (a - c).abs() + (b - c).abs() + (d - b).abs();
-                    let m = u32::from(if col > 0 { mag[j - 1] } else { 0 })
-                        + u32::from(up.map_or(0, |u| mag[u]));
-                    (rec[j], mag[j]) = sample(g, cx, coder, y * w + x, p, t, m)?;
+                    let m = u32::from(if col > 0 { st.own_mag(j - 1, i - big) } else { 0 })
+                        + u32::from(if up { st.own_mag(j - cols, i - big * w) } else { 0 });
+                    let (r, mg) = sample(g, cx, coder, i, p, t, m)?;
+                    st.set(j, i, r, mg);
                 }
             }
         }
         Kind::Vertical => {
-            let ws = (w * s) as isize;
+            let ws = w * s;
             let offs = pass.offsets(w);
             for k in k0..k1 {
                 let y = pass.r0 + k * pass.rs;
@@ -472,43 +549,49 @@ fn run_band<C: SymCoder>(g: &Global, pass: Pass, (k0, k1): (usize, usize), coder
                 let interior = y >= 3 * s && y + 3 * s < h;
                 for col in 0..cols {
                     let x = col * pass.cs;
-                    let i = y * w + x;
-                    let j = row + col;
-                    let at = |d: isize| (i as isize + d * ws) as usize;
+                    let (i, j) = (y * w + x, row + col);
                     let (p, t, ms) = if interior {
-                        let (a, b, c, d) =
-                            (g.rec[at(-3)], g.rec[at(-1)], g.rec[at(1)], g.rec[at(3)]);
+                        let (a, b, c, d) = (
+                            st.rec(i - 3 * ws),
+                            st.rec(i - ws),
+                            st.rec(i + ws),
+                            st.rec(i + 3 * ws),
+                        );
                         let base = (-a + 9 * (b + c) - d + 8) >> 4;
                         (
                             match pass.weights {
                                 Some(wt) if x >= 2 * s && x + 2 * s < w => {
-                                    let own = [Some(rec[j - 1]), (k > k0).then(|| rec[j - cols])];
-                                    corrected(g.rec, i, &offs, &wt, own, base)
+                                    let own = [
+                                        st.own_rec(j - 1, i - 2 * s),
+                                        if k > k0 { st.own_rec(j - cols, i - 2 * ws) } else { base },
+                                    ];
+                                    corrected(st, i, &offs, &wt, [b, c, a, d], own, base)
                                 }
                                 _ => base,
                             },
                             (-a + b + c - d).abs() + (b - c).abs() / 4,
-                            u32::from(g.mag[at(-1)]) + u32::from(g.mag[at(1)]),
+                            u32::from(st.mag(i - ws)) + u32::from(st.mag(i + ws)),
                         )
                     } else {
                         let get = |d: isize| {
                             let yy = y as isize + d * s as isize;
-                            (yy >= 0 && (yy as usize) < h).then(|| at(d))
+                            (yy >= 0 && (yy as usize) < h).then(|| (i as isize + d * ws as isize) as usize)
                         };
-                        let b = g.rec[at(-1)];
+                        let b = st.rec(i - ws);
                         let (a, c, d) = (get(-3), get(1), get(3));
-                        let (a, c, d) = (a.map(|q| g.rec[q]), c.map(|q| g.rec[q]), d.map(|q| g.rec[q]));
-                        let mc = get(1).map_or(0, |q| u32::from(g.mag[q]));
+                        let mc = c.map_or(0, |q| u32::from(st.mag(q)));
+                        let (a, c, d) = (a.map(|q| st.rec(q)), c.map(|q| st.rec(q)), d.map(|q| st.rec(q)));
                         (
                             interp1(a, b, c, d),
                             curvature(a, b, c, d),
-                            u32::from(g.mag[at(-1)]) + mc,
+                            u32::from(st.mag(i - ws)) + mc,
                         )
                     };
                     let m = ms
-                        + u32::from(if col > 0 { mag[j - 1] } else { 0 })
-                        + u32::from(if k > k0 { mag[j - cols] } else { 0 });
-                    (rec[j], mag[j]) = sample(g, cx, coder, i, p, t, m)?;
+                        + u32::from(if col > 0 { st.own_mag(j - 1, i - 2 * s) } else { 0 })
+                        + u32::from(if k > k0 { st.own_mag(j - cols, i - 2 * ws) } else { 0 });
+                    let (r, mg) = sample(g, cx, coder, i, p, t, m)?;
+                    st.set(j, i, r, mg);
                 }
             }
         }
@@ -525,79 +608,136 @@ fn run_band<C: SymCoder>(g: &Global, pass: Pass, (k0, k1): (usize, usize), coder
                 c
             };
             let offs = pass.offsets(w);
+            let ws = w * s;
             for k in k0..k1 {
                 let y = k * pass.rs;
                 let row = (k - k0) * cols;
                 let line = y * w;
                 let wts = pass.weights.filter(|_| y >= s && y + s < h);
-                let edge = |col: usize,
-                            rec: &mut Vec<i64>,
-                            mag: &mut Vec<u8>,
-                            coder: &mut C|
-                 -> Result<()> {
-                    let x = s + col * pass.cs;
-                    let i = line + x;
-                    let j = row + col;
-                    let get = |d: isize| {
-                        let xx = x as isize + d * s as isize;
-                        (xx >= 0 && (xx as usize) < w).then(|| (i as isize + d * s as isize) as usize)
-                    };
-                    let b = g.rec[i - s];
-                    let (a, c, d) = (get(-3), get(1), get(3));
-                    let mc = c.map_or(0, |q| u32::from(g.mag[q]));
-                    let (a, c, d) = (a.map(|q| g.rec[q]), c.map(|q| g.rec[q]), d.map(|q| g.rec[q]));
-                    let m = u32::from(g.mag[i - s])
-                        + mc
-                        + u32::from(if col > 0 { mag[j - 1] } else { 0 })
-                        + u32::from(if k > k0 { mag[j - cols] } else { 0 });
-                    (rec[j], mag[j]) =
-                        sample(g, cx, coder, i, interp1(a, b, c, d), curvature(a, b, c, d), m)?;
-                    Ok(())
-                };
+                let up = k > k0;
                 for col in 0..lo {
-                    edge(col, &mut rec, &mut mag, coder)?;
+                    h_edge(g, st, coder, cx, pass, (k, k0, col, cols), line)?;
                 }
-                let (rl, ml) = (&g.rec[line..line + w], &g.mag[line..line + w]);
-                let mut prev = if lo > 0 { mag[row + lo - 1] } else { 0 };
                 for col in lo..hi {
                     let x = s + col * pass.cs;
-                    let j = row + col;
-                    let (a, b, c, d) = (rl[x - 3 * s], rl[x - s], rl[x + s], rl[x + 3 * s]);
+                    let (i, j) = (line + x, row + col);
+                    let (a, b, c, d) =
+                        (st.rec(i - 3 * s), st.rec(i - s), st.rec(i + s), st.rec(i + 3 * s));
                     let base = (-a + 9 * (b + c) - d + 8) >> 4;
                     let p = match &wts {
                         Some(wt) => {
                             let own = [
-                                (k > k0).then(|| rec[j - cols]),
-                                (k > k0 + 1).then(|| rec[j - 2 * cols]),
+                                if up { st.own_rec(j - cols, i - ws) } else { base },
+                                if k > k0 + 1 { st.own_rec(j - 2 * cols, i - 2 * ws) } else { base },
                             ];
-                            corrected(g.rec, line + x, &offs, wt, own, base)
+                            corrected(st, i, &offs, wt, [b, c, a, d], own, base)
                         }
                         None => base,
                     };
                     let t = (-a + b + c - d).abs() + (b - c).abs() / 4;
-                    let up = if k > k0 { mag[j - cols] } else { 0 };
-                    let m = u32::from(ml[x - s]) + u32::from(ml[x + s]) + u32::from(prev) + u32::from(up);
-                    let (r, mg) = sample(g, cx, coder, line + x, p, t, m)?;
-                    rec[j] = r;
-                    mag[j] = mg;
-                    prev = mg;
+                    let m = u32::from(st.mag(i - s))
+                        + u32::from(st.mag(i + s))
+                        + u32::from(st.own_mag(j - 1, i - 2 * s))
+                        + u32::from(if up { st.own_mag(j - cols, i - ws) } else { 0 });
+                    let (r, mg) = sample(g, cx, coder, i, p, t, m)?;
+                    st.set(j, i, r, mg);
                 }
                 for col in hi.max(lo)..cols {
-                    edge(col, &mut rec, &mut mag, coder)?;
+                    h_edge(g, st, coder, cx, pass, (k, k0, col, cols), line)?;
                 }
             }
         }
     }
-    Ok(Band { rec, mag })
+    Ok(())
+}
+
+/// A sample of a horizontal pass whose support leaves the raster (no stencil).
+#[inline(always)]
+fn h_edge<C: SymCoder, S: Store>(
+    g: &Global,
+    st: &mut S,
+    coder: &mut C,
+    cx: Ctxs,
+    pass: Pass,
+    (k, k0, col, cols): (usize, usize, usize, usize),
+    line: usize,
+) -> Result<()> {
+    let (w, s) = (g.w, pass.s);
+    let x = s + col * pass.cs;
+    let (i, j) = (line + x, (k - k0) * cols + col);
+    let get = |d: isize| {
+        let xx = x as isize + d * s as isize;
+        (xx >= 0 && (xx as usize) < w).then(|| (i as isize + d * s as isize) as usize)
+    };
+    let b = st.rec(i - s);
+    let (a, c, d) = (get(-3), get(1), get(3));
+    let mc = c.map_or(0, |q| u32::from(st.mag(q)));
+    let (a, c, d) = (a.map(|q| st.rec(q)), c.map(|q| st.rec(q)), d.map(|q| st.rec(q)));
+    let m = u32::from(st.mag(i - s))
+        + mc
+        + u32::from(if col > 0 { st.own_mag(j - 1, i - 2 * s) } else { 0 })
+        + u32::from(if k > k0 { st.own_mag(j - cols, i - w * s) } else { 0 });
+    let (r, mg) = sample(g, cx, coder, i, interp1(a, b, c, d), curvature(a, b, c, d), m)?;
+    st.set(j, i, r, mg);
+    Ok(())
+}
+
+/// Run the bands of one pass with a coder each (`make` gives band b's, `done` takes it
+/// back): on one thread one after the other straight into the planes, else side by side,
+/// each into buffers of its own, then written into the planes. The same values either way.
+fn run_pass<C: SymCoder + Send, T: Send>(
+    g: &Global,
+    pass: Pass,
+    bands: &[(usize, usize)],
+    (rec, mag): (&mut [i64], &mut [u8]),
+    make: impl Fn(usize) -> Result<C> + Sync,
+    done: impl Fn(C) -> Result<T> + Sync,
+) -> Result<Vec<T>> {
+    if bands.len() <= 1 || rayon::current_num_threads() == 1 {
+        let mut st = InPlace { rec, mag };
+        let mut out = Vec::with_capacity(bands.len());
+        for (b, &band) in bands.iter().enumerate() {
+            let mut c = make(b)?;
+            run_band(g, pass, band, &mut c, &mut st)?;
+            out.push(done(c)?);
+        }
+        return Ok(out);
+    }
+    let cols = pass.cols(g.w);
+    let coded: Vec<((Vec<i64>, Vec<u8>), T)> = {
+        let (rec, mag) = (&*rec, &*mag);
+        bands
+            .par_iter()
+            .enumerate()
+            .map(|(b, &band)| {
+                let n = (band.1 - band.0) * cols;
+                let mut st = Apart {
+                    rec,
+                    mag,
+                    brec: vec![0; n],
+                    bmag: vec![0; n],
+                };
+                let mut c = make(b)?;
+                run_band(g, pass, band, &mut c, &mut st)?;
+                Ok(((st.brec, st.bmag), done(c)?))
+            })
+            .collect::<Result<_>>()?
+    };
+    let mut out = Vec::with_capacity(bands.len());
+    for ((buf, t), &(k0, _)) in coded.into_iter().zip(bands) {
+        scatter(g.w, pass, k0, &buf, rec, mag);
+        out.push(t);
+    }
+    Ok(out)
 }
 
 /// Write a band back into the planes.
-fn scatter(w: usize, pass: Pass, k0: usize, band: &Band, rec: &mut [i64], mag: &mut [u8]) {
+fn scatter(w: usize, pass: Pass, k0: usize, band: &(Vec<i64>, Vec<u8>), rec: &mut [i64], mag: &mut [u8]) {
     let cols = pass.cols(w);
     for (r, (br, bm)) in band
-        .rec
+        .0
         .chunks_exact(cols)
-        .zip(band.mag.chunks_exact(cols))
+        .zip(band.1.chunks_exact(cols))
         .enumerate()
     {
         let y = pass.r0 + (k0 + r) * pass.rs;
@@ -680,7 +820,6 @@ pub fn encode(p: &Plane, cfg: Config) -> Result<Encoded> {
     let n = w * h;
     let mut rec = vec![0i64; n];
     let mut mag = vec![0u8; n];
-    let all_coded = p.kinds.iter().all(|&k| k == CODED);
     let mut streams: Vec<Recorder> = Vec::new();
     // The stencils worth their bytes, fitted on the source before any pass runs; the
     // section stores the finest levels' sets down to the coarsest level using one (zeros
@@ -708,22 +847,17 @@ pub fn encode(p: &Plane, cfg: Config) -> Result<Encoded> {
             pass.weights = f;
         }
     }
+    let g = Global::new(p);
     for pass in all {
         let bands = pass.bands(w, h, cfg.band_log2);
-        let done: Vec<(Band, Recorder)> = {
-            let g = Global::new(p, all_coded, &rec, &mag);
-            bands
-                .par_iter()
-                .map(|&b| {
-                    let mut r = Recorder::default();
-                    run_band(&g, pass, b, &mut r).map(|band| (band, r))
-                })
-                .collect::<Result<_>>()?
-        };
-        for ((band, r), &(k0, _)) in done.into_iter().zip(&bands) {
-            scatter(w, pass, k0, &band, &mut rec, &mut mag);
-            streams.push(r);
-        }
+        streams.extend(run_pass(
+            &g,
+            pass,
+            &bands,
+            (&mut rec, &mut mag),
+            |_| Ok(Recorder::default()),
+            Ok,
+        )?);
     }
     // Tables from the counts of every stream.
     let mut counts = vec![[0u64; ALPHABET]; NCTX];
@@ -853,7 +987,7 @@ pub fn decode(
     let n = w * h;
     let mut rec = vec![0i64; n];
     let mut mag = vec![0u8; n];
-    let all_coded = p.kinds.iter().all(|&k| k == CODED);
+    let g = Global::new(p);
     let mut next = 0;
     let mut next_w = weights.iter();
     for mut pass in passes {
@@ -864,28 +998,25 @@ pub fn decode(
         let bands = pass.bands(w, h, band_log2);
         let mine = &slices[next..next + bands.len()];
         next += bands.len();
-        let done: Vec<Band> = {
-            let g = Global::new(p, all_coded, &rec, &mag);
-            bands
-                .par_iter()
-                .zip(mine)
-                .map(|(&b, &(a, r))| {
-                    let mut rdr = Reader {
-                        ans: StreamDecoder::new(a, &dec)?,
-                        raw: BitReader::new(r, "raw bits"),
-                        base: &base,
-                        max_bin,
-                    };
-                    let band = run_band(&g, pass, b, &mut rdr)?;
-                    rdr.ans.finish()?;
-                    rdr.raw.finish()?;
-                    Ok(band)
+        run_pass(
+            &g,
+            pass,
+            &bands,
+            (&mut rec, &mut mag),
+            |b| {
+                let (a, r) = mine[b];
+                Ok(Reader {
+                    ans: StreamDecoder::new(a, &dec)?,
+                    raw: BitReader::new(r, "raw bits"),
+                    base: &base,
+                    max_bin,
                 })
-                .collect::<Result<_>>()?
-        };
-        for (band, &(k0, _)) in done.iter().zip(&bands) {
-            scatter(w, pass, k0, band, &mut rec, &mut mag);
-        }
+            },
+            |mut rdr| {
+                rdr.ans.finish()?;
+                rdr.raw.finish()
+            },
+        )?;
     }
     Ok(rec)
 }

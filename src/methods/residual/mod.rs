@@ -575,12 +575,24 @@ pub(crate) fn decode(
     if coded != want {
         return Err(rd.corrupt(format!("codes {coded} samples, the raster has {want}")));
     }
-    let fixed = flat.map(Flat::dense);
-    let fixed = fixed.as_deref();
-    if fixed.is_some_and(|f| f.len() != n) {
+    let flat = flat.filter(|f| f.runs().next().is_some());
+    if flat.is_some_and(|f| f.runs().last().is_some_and(|(s, l, _)| s + l > n)) {
         return Err(Error::corrupt("residual section: mask and raster sizes differ"));
     }
-    let kinds = kinds(n, mask, fixed);
+    // The fast coding reads no kinds when every sample is coded (an empty plane).
+    let every_coded = mask.is_none() && flat.is_none();
+    let kinds = if every_coded && matches!(cfg, Predictor::Fast(_)) {
+        Vec::new()
+    } else {
+        let mut k: Vec<u8> = match mask {
+            Some(m) => m.iter().map(|&v| if v { CODED } else { SKIPPED }).collect(),
+            None => vec![CODED; n],
+        };
+        for (s, l, _) in flat.into_iter().flat_map(Flat::runs) {
+            k[s..s + l].fill(FIXED);
+        }
+        k
+    };
     let nf = match cfg {
         Predictor::Interp(_) => interp::NF,
         Predictor::Weighted => weighted::NF,
@@ -605,19 +617,18 @@ pub(crate) fn decode(
         } else {
             rd.f64("exception value")?
         };
-        if i >= n as u64 || kinds[i as usize] != CODED || !v.is_finite() {
+        let coded_at = |i: usize| kinds.get(i).is_none_or(|&k| k == CODED);
+        if i >= n as u64 || !coded_at(i as usize) || !v.is_finite() {
             return Err(rd.corrupt(format!("exception at sample {i} is not a coded sample with a finite value")));
         }
         exc.push((i as usize, v));
         next = i + 1;
     }
-    let mut values = vec![0i64; n];
-    if let Some(f) = fixed {
-        for (i, &v) in f.iter().enumerate() {
-            if !v.is_nan() {
-                values[i] = domain.index(v).clamp(-MAX_UNITS as f64, MAX_UNITS as f64) as i64;
-            }
-        }
+    // The fixed samples' values (only they are read).
+    let mut values = if flat.is_some() { vec![0i64; n] } else { Vec::new() };
+    for (s, l, v) in flat.into_iter().flat_map(Flat::runs) {
+        let k = domain.index(v).clamp(-MAX_UNITS as f64, MAX_UNITS as f64) as i64;
+        values[s..s + l].fill(k);
     }
     let p = Plane {
         width: w,
@@ -664,17 +675,37 @@ pub(crate) fn decode(
     st.rec
     };
     let fill = header.nodata.unwrap_or(f64::NAN);
-    let mut out: Vec<f64> = (0..n)
-        .map(|i| match kinds[i] {
-            SKIPPED => fill,
-            FIXED => fixed.map_or(fill, |f| f[i]),
-            _ => finish_value(domain.raw(rec[i]), header),
-        })
-        .collect();
+    let value = lattice_value(domain, header);
+    let mut out: Vec<f64> = if kinds.is_empty() {
+        rec.iter().map(|&k| value(k)).collect()
+    } else {
+        rec.iter()
+            .zip(&kinds)
+            .map(|(&k, &kind)| if kind == SKIPPED { fill } else { value(k) })
+            .collect()
+    };
+    for (s, l, v) in flat.into_iter().flat_map(Flat::runs) {
+        out[s..s + l].fill(v);
+    }
     for (i, v) in exc {
         out[i] = v;
     }
     Ok(out)
+}
+
+/// A coded sample's value from its lattice index: `finish_value(domain.raw(k))`, without
+/// the multiplication, division and rounding where the lattice is the integers and the
+/// sample type's codes are the values (the same result: every step is exact).
+fn lattice_value(domain: Domain, header: &Header) -> impl Fn(i64) -> f64 + '_ {
+    let ident = domain.mul == 1.0 && domain.div == 1.0 && domain.offset == 0.0;
+    let int_codes = (header.mapping.scale == 1.0 && header.mapping.offset == 0.0)
+        .then(|| header.sample_type.int_range())
+        .flatten();
+    move |k| match (ident, int_codes) {
+        (true, Some((lo, hi))) => (k as f64).clamp(lo, hi),
+        (true, None) => crate::quant::finish_value(k as f64, header),
+        _ => finish_value(domain.raw(k), header),
+    }
 }
 
 /// The narrowest bin width of an interpolation coding with `levels` levels.
