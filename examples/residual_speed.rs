@@ -6,6 +6,7 @@
 //! `cargo run --release --example residual_speed -- FILE BOUND EFFORT RUNS`
 //! (BOUND: `lossless`, an absolute bound `1`, or `1%` of the value range), or
 //! `… -- FILE.vtz RUNS` to decode a file only (for `perf stat` instruction counts).
+//! With `RESIDUAL_SPEED_OUT=F.vtz` the encoded bytes are written to F.vtz.
 
 use std::time::Instant;
 
@@ -50,6 +51,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         td.push(n / t.elapsed().as_secs_f64());
         size = bytes.len();
         assert_eq!(back.data.len(), raster.data.len());
+        if let Some(p) = std::env::var_os("RESIDUAL_SPEED_OUT") {
+            std::fs::write(p, &bytes)?;
+        }
     }
     let stats = |v: &mut Vec<f64>| {
         v.sort_by(f64::total_cmp);

@@ -23,6 +23,7 @@ use crate::entropy::range::{Decoder, Encoder};
 use crate::error::{Error, Result};
 use crate::model::{Raster, SampleType};
 use crate::quant::{Errors, finish_value};
+use rayon::prelude::*;
 use coder::{BinDecoder, BinEncoder, Models};
 use lattice::{Domain, MAX_UNITS};
 use plane::{CODED, FIXED, Plane, SKIPPED};
@@ -44,13 +45,11 @@ const MAX_LEVELS: u8 = 12;
 const LS_LEVELS: u32 = 3;
 /// What the encoder reckons one exception costs, in bits (a gap and a float).
 const EXCEPTION_BITS: f64 = 48.0;
-/// The fast coding narrows coarse-level bins from bins of this many lattice steps.
-const FAST_TIGHT_FROM: i64 = 21;
 /// Sub-lattice refinements the encoder considers (bins of (2·⌊d·E/q⌋+1)/d steps).
 const MAX_SUBDIVISION: i64 = 16;
 
 /// The encoder effort without `--effort`. What each effort does in the residual layer
-/// ([`codings`]): 1–2 the fast coding, 3+ both range-coded predictors, 5+ also sub-lattice
+/// (`codings`): 1–2 the fast coding, 3+ both range-coded predictors, 5+ also sub-lattice
 /// bins and narrower coarse bins, 6+ also the fast coding; the smallest kept.
 pub const DEFAULT_EFFORT: u8 = 5;
 
@@ -205,26 +204,25 @@ pub(crate) fn encode(
     }))
 }
 
-/// Which codings to try. Efforts 1–2: the fast coding alone, narrower coarse-level bins
-/// from bins of 21 lattice steps up (measured on White Mountains, Half Dome and Crater
-/// Lake: they lose at bins of ~11 and win from ~31) and stencil corrections where the
-/// encoder reckons they pay. Efforts 3–4: the two range-coded predictors (multilevel
+/// Which codings to try. Efforts 1–2: the fast coding alone, with narrower coarse-level
+/// bins where bins are wide against the finest level's prediction error ([`fast::resolve`])
+/// and stencil corrections where the encoder reckons they pay. Efforts 3–4: the two range-coded predictors (multilevel
 /// interpolation, the weighted scan); 5 (the default) also interpolation with narrower
 /// coarse bins when bins are ≥ 3 steps (SZ3's α/β: it gains at wide bins and loses at
 /// narrow ones). Efforts 6–9: all of those and both bin layouts of the fast coding. The
 /// smallest wins.
 fn codings(cfg: interp::Config, bin: i64, effort: u8) -> Vec<Predictor> {
-    let fast = |tighten| {
+    let fast = |tighten, tighten_auto| {
         Predictor::Fast(fast::Config {
             levels: cfg.levels,
             ls_levels: cfg.ls_levels,
             tighten,
+            tighten_auto,
             band_log2: fast::DEFAULT_BAND_LOG2,
         })
     };
-    let rule = bin >= FAST_TIGHT_FROM;
     if effort <= 2 {
-        return vec![fast(rule)];
+        return vec![fast(false, true)];
     }
     let mut v = vec![Predictor::Interp(cfg)];
     if effort >= 5 && bin >= 3 {
@@ -235,7 +233,7 @@ fn codings(cfg: interp::Config, bin: i64, effort: u8) -> Vec<Predictor> {
     }
     v.push(Predictor::Weighted);
     if effort > DEFAULT_EFFORT {
-        v.extend([fast(rule), fast(!rule)]);
+        v.extend([fast(false, false), fast(true, false)]);
     }
     v
 }
@@ -346,6 +344,7 @@ fn code(p: &Plane, pred: Predictor, s: &Setup, exceptions: &[u8]) -> Result<(Vec
         enc: Encoder::with_capacity(p.kinds.len() / 4),
     };
     if let Predictor::Fast(cfg) = pred {
+        let cfg = fast::resolve(p, cfg);
         let (weights, body, rec) = fast::encode(p, cfg)?;
         let mut out = fixed_fields(
             if cfg.tighten { CODING_FAST_TIGHT } else { CODING_FAST },
@@ -449,6 +448,7 @@ fn read_head(rd: &mut ByteReader) -> Result<Head> {
                     levels: levels as u32,
                     ls_levels: weight_sets as u32 / 2,
                     tighten: coding == CODING_FAST_TIGHT,
+                    tighten_auto: false,
                     // Read with the streams.
                     band_log2: 0,
                 })
@@ -677,9 +677,9 @@ pub(crate) fn decode(
     let fill = header.nodata.unwrap_or(f64::NAN);
     let value = lattice_value(domain, header);
     let mut out: Vec<f64> = if kinds.is_empty() {
-        rec.iter().map(|&k| value(k)).collect()
+        rec.par_iter().map(|&k| value(k)).collect()
     } else {
-        rec.iter()
+        rec.par_iter()
             .zip(&kinds)
             .map(|(&k, &kind)| if kind == SKIPPED { fill } else { value(k) })
             .collect()
@@ -696,7 +696,7 @@ pub(crate) fn decode(
 /// A coded sample's value from its lattice index: `finish_value(domain.raw(k))`, without
 /// the multiplication, division and rounding where the lattice is the integers and the
 /// sample type's codes are the values (the same result: every step is exact).
-fn lattice_value(domain: Domain, header: &Header) -> impl Fn(i64) -> f64 + '_ {
+fn lattice_value(domain: Domain, header: &Header) -> impl Fn(i64) -> f64 + Sync + '_ {
     let ident = domain.mul == 1.0 && domain.div == 1.0 && domain.offset == 0.0;
     let int_codes = (header.mapping.scale == 1.0 && header.mapping.offset == 0.0)
         .then(|| header.sample_type.int_range())
