@@ -170,7 +170,8 @@ fn passes(cfg: Config, bin: i64) -> Vec<Pass> {
 #[inline(always)]
 fn half_log(v: u64) -> u32 {
     let l = 63 - v.leading_zeros();
-    let below = if l > 0 { ((v >> (l - 1)) & 1) as u32 } else { 0 };
+    // The bit below the leading one (none for v = 1: (2v >> 0) & 1 = 0); v < 2^63.
+    let below = (((v << 1) >> l) & 1) as u32;
     2 * l + below
 }
 
@@ -414,16 +415,20 @@ fn corrected<S: Store>(
     own: [i64; 2],
     base: i64,
 ) -> i64 {
+    // Σ (v_k − base)·w_k = Σ v_k·w_k − base·Σ w_k, exactly (integers); Σ w_k is constant
+    // per pass and hoisted out of the loops.
+    let sum_w: i64 = wts.iter().map(|&w| w as i64).sum();
     let mut acc = 0i64;
     for k in 0..4 {
-        acc += (bcad[k] - base) * wts[k] as i64;
+        acc += bcad[k] * wts[k] as i64;
     }
     for k in 4..NCOARSE {
-        acc += (st.rec((i as isize + offs[k]) as usize) - base) * wts[k] as i64;
+        acc += st.rec((i as isize + offs[k]) as usize) * wts[k] as i64;
     }
     for k in 0..2 {
-        acc += (own[k] - base) * wts[NCOARSE + k] as i64;
+        acc += own[k] * wts[NCOARSE + k] as i64;
     }
+    acc -= base * sum_w;
     base + ((acc + 512) >> 10)
 }
 
