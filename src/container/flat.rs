@@ -196,9 +196,15 @@ pub fn decode(payload: &[u8], w: usize, n: usize, mask: Option<&[bool]>) -> Resu
         let bw = w.div_ceil(BLOCK);
         let valid = blocks_valid(w, h, mask);
         let blocks = bitmap::decode(stream, bw, valid.len(), |b| valid[b])?;
-        (0..n)
-            .map(|i| blocks[(i / w / BLOCK) * bw + (i % w) / BLOCK])
-            .collect()
+        // Each row takes its block row's flags, a block's BLOCK samples at a time.
+        let mut flat = vec![false; n];
+        for (y, row) in flat.chunks_mut(w.max(1)).enumerate() {
+            let brow = &blocks[(y / BLOCK) * bw..(y / BLOCK + 1) * bw];
+            for (cells, &b) in row.chunks_mut(BLOCK).zip(brow) {
+                cells.fill(b);
+            }
+        }
+        flat
     };
     let seen = flat.iter().filter(|&&b| b).count() as u64;
     if seen != flat_count {
