@@ -1,11 +1,11 @@
 //! The fast coding (codings 2 and 3, spec/FORMAT.md "Fast coding"): multilevel cubic
-//! interpolation without stencil corrections, each bin a token (small values directly,
-//! large ones as exponent + raw bits, as JPEG XL's hybrid integers) coded by static rANS
-//! under a context of the level and a cheap "energy" (the support's curvature and four
+//! interpolation with a least-squares stencil on the finest levels (points of coarser
+//! levels and of the sample's own band), each bin a token (small values directly, large
+//! ones as exponent + raw bits, as JPEG XL's hybrid integers) coded by static rANS under a
+//! context of the level and a cheap "energy" (the support's curvature and four
 //! neighbours' bins), the contexts clustered by the encoder. Every pass of every level is
-//! cut into bands of rows, each its own stream: a sample's prediction reads only coarser
-//! samples and its contexts only coarser samples and its own band, so the bands of a pass
-//! decode (and encode) on as many cores as there are.
+//! cut into bands of rows, each its own stream: a sample reads only coarser samples and
+//! its own band, so the bands of a pass decode (and encode) on as many cores as there are.
 
 use super::coder::quantize;
 use super::interp::{interp1, level_bin};
