@@ -1,0 +1,574 @@
+//! The fast coding (codings 2 and 3, spec/FORMAT.md "Fast coding"): multilevel cubic
+//! interpolation with a least-squares stencil on the finest levels (points of coarser
+//! levels and of the sample's own band), each bin a token (small values directly, large
+//! ones as exponent + raw bits, as JPEG XL's hybrid integers) coded by static rANS under a
+//! context of the level and a cheap "energy" (the support's curvature and four
+//! neighbours' bins), the contexts clustered by the encoder. Every pass of every level is
+//! cut into bands of rows, each its own stream: a sample reads only coarser samples and
+//! its own band, so the bands of a pass decode (and encode) on as many cores as there are.
+
+use super::interp::level_bin;
+use super::plane::{CODED, Plane};
+use crate::container::bytes::ByteReader;
+use crate::entropy::rans::{
+    self, BitReader, BitWriter, DecTables, EncTable, StreamDecoder, StreamEncoder,
+};
+use crate::entropy::varint;
+use crate::error::{Error, Result};
+use rayon::prelude::*;
+
+mod band;
+mod clusters;
+mod fit;
+
+use band::{Global, run_pass};
+use clusters::cluster;
+use fit::fit;
+pub use fit::resolve;
+
+/// Context groups: level 1's horizontal pass, level 1's vertical pass, level 2, levels ≥ 3,
+/// anchors.
+const GROUPS: usize = 5;
+/// Energy classes per group (half octaves of the energy in quarter bins).
+const FINE: usize = 40;
+/// Contexts before clustering.
+const NCTX: usize = GROUPS * FINE;
+/// Tokens: 0..16 themselves, then two per exponent 4 ..= 40.
+pub const ALPHABET: usize = 90;
+/// Bands of about 2^18 samples: a 3600² tile's finest pass has 25, a 1201² one's 3.
+pub const DEFAULT_BAND_LOG2: u8 = 18;
+/// Smallest and largest band size exponent a section may hold.
+pub const BAND_LOG2: std::ops::RangeInclusive<u8> = 10..=30;
+
+/// Points of the least-squares stencil, (dy, dx) in units of the level's step, per pass
+/// (vertical, horizontal): eight of coarser levels, then two of the pass itself, which
+/// count only within the sample's band (elsewhere their feature is 0).
+const STENCIL: [[(isize, isize); NW]; 2] = [
+    [(-1, 0), (1, 0), (-3, 0), (3, 0), (-1, -2), (1, -2), (-1, 2), (1, 2), (0, -2), (-2, 0)],
+    [(0, -1), (0, 1), (0, -3), (0, 3), (-1, -1), (-1, 1), (1, -1), (1, 1), (-1, 0), (-2, 0)],
+];
+/// Stencil points.
+pub const NW: usize = 10;
+/// A stencil's fit reads about 2^this many samples.
+const FIT_SAMPLES_LOG2: u32 = 17;
+/// Stencil points of coarser levels.
+const NCOARSE: usize = 8;
+
+/// The fast coding's settings.
+#[derive(Clone, Copy, Debug)]
+pub struct Config {
+    /// Anchor stride 2^levels (1 ..= 12).
+    pub levels: u32,
+    /// Levels (finest first) with a least-squares correction (0 ..= min(levels, 4)).
+    pub ls_levels: u32,
+    /// Narrower bins on coarse levels, as coding 1 (coding 3).
+    pub tighten: bool,
+    /// Let [`resolve`] choose `tighten` from the data.
+    pub tighten_auto: bool,
+    /// Bands hold about 2^band_log2 samples.
+    pub band_log2: u8,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Kind {
+    Anchor,
+    Vertical,
+    Horizontal,
+}
+
+/// One pass over the plane: rows r0, r0 + rs, … and columns c0, c0 + cs, … .
+#[derive(Clone, Copy, Debug)]
+struct Pass {
+    kind: Kind,
+    /// The level's step (the anchor stride for anchors).
+    s: usize,
+    r0: usize,
+    rs: usize,
+    c0: usize,
+    cs: usize,
+    group: usize,
+    bin: i64,
+    /// Stencil weights (units of 2^-10), on the finest `ls_levels` levels.
+    weights: Option<[i16; NW]>,
+}
+
+impl Pass {
+    /// Index offsets of the stencil points in a raster `w` wide.
+    fn offsets(&self, w: usize) -> [isize; NW] {
+        let t = usize::from(self.kind == Kind::Horizontal);
+        STENCIL[t].map(|(dy, dx)| (dy * w as isize + dx) * self.s as isize)
+    }
+    fn level(&self) -> u32 {
+        self.s.trailing_zeros() + 1
+    }
+    fn rows(&self, h: usize) -> usize {
+        if self.r0 < h { (h - 1 - self.r0) / self.rs + 1 } else { 0 }
+    }
+    fn cols(&self, w: usize) -> usize {
+        if self.c0 < w { (w - 1 - self.c0) / self.cs + 1 } else { 0 }
+    }
+    /// The bands: ranges of pass rows, each of max(1, ⌊2^band_log2 / cols⌋) rows but the
+    /// last; the anchors are one band.
+    fn bands(&self, w: usize, h: usize, band_log2: u8) -> Vec<(usize, usize)> {
+        let (rows, cols) = (self.rows(h), self.cols(w));
+        if rows == 0 || cols == 0 {
+            return Vec::new();
+        }
+        let per = if self.kind == Kind::Anchor {
+            rows
+        } else {
+            ((1usize << band_log2) / cols).max(1)
+        };
+        (0..rows.div_ceil(per))
+            .map(|b| (b * per, ((b + 1) * per).min(rows)))
+            .collect()
+    }
+}
+
+/// The passes in coding order: anchors, then per level (coarse to fine) vertical and
+/// horizontal.
+fn passes(cfg: Config, bin: i64) -> Vec<Pass> {
+    let bin_of = |l: u32| if cfg.tighten { level_bin(bin, l) } else { bin };
+    let big = 1usize << cfg.levels;
+    let mut v = vec![Pass {
+        kind: Kind::Anchor,
+        s: big,
+        r0: 0,
+        rs: big,
+        c0: 0,
+        cs: big,
+        group: 4,
+        bin: bin_of(cfg.levels + 1),
+        weights: None,
+    }];
+    for l in (1..=cfg.levels).rev() {
+        let s = 1usize << (l - 1);
+        let g = |vert: bool| match l {
+            1 => usize::from(vert),
+            2 => 2,
+            _ => 3,
+        };
+        v.push(Pass {
+            kind: Kind::Vertical,
+            s,
+            r0: s,
+            rs: 2 * s,
+            c0: 0,
+            cs: 2 * s,
+            group: g(true),
+            bin: bin_of(l),
+            weights: None,
+        });
+        v.push(Pass {
+            kind: Kind::Horizontal,
+            s,
+            r0: 0,
+            rs: s,
+            c0: s,
+            cs: 2 * s,
+            group: g(false),
+            bin: bin_of(l),
+            weights: None,
+        });
+    }
+    v
+}
+
+/// Half-octave logarithm: 2·⌊log2 v⌋ plus the bit below the leading one (v ≥ 1).
+#[inline(always)]
+fn half_log(v: u64) -> u32 {
+    let l = 63 - v.leading_zeros();
+    // The bit below the leading one (none for v = 1: (2v >> 0) & 1 = 0); v < 2^63.
+    let below = (((v << 1) >> l) & 1) as u32;
+    2 * l + below
+}
+
+/// Codes (encoder) or reads (decoder) one bin under a context.
+pub trait SymCoder {
+    const ENCODES: bool;
+    fn code(&mut self, ctx: usize, bin: i64) -> Result<i64>;
+}
+
+/// The token of a zig-zagged bin v, its raw bits and their count.
+#[inline(always)]
+fn token(v: u64) -> (u8, u64, u32) {
+    if v < 16 {
+        (v as u8, 0, 0)
+    } else {
+        let e = 63 - v.leading_zeros();
+        let top = (v >> (e - 1)) & 1;
+        ((16 + 2 * (e - 4) + top as u32) as u8, v & ((1 << (e - 1)) - 1), e - 1)
+    }
+}
+
+/// The encoder's first pass over a band: tokens, their contexts and the raw bits.
+#[derive(Default)]
+struct Recorder {
+    tokens: Vec<u8>,
+    ctxs: Vec<u8>,
+    raw: BitWriter,
+}
+
+impl SymCoder for Recorder {
+    const ENCODES: bool = true;
+    #[inline(always)]
+    fn code(&mut self, ctx: usize, bin: i64) -> Result<i64> {
+        let (t, raw, n) = token(varint::zigzag(bin));
+        self.tokens.push(t);
+        self.ctxs.push(ctx as u8);
+        if n > 0 {
+            self.raw.put(raw, n);
+        }
+        Ok(bin)
+    }
+}
+
+/// The decoder of one band's stream.
+struct Reader<'a> {
+    ans: StreamDecoder<'a>,
+    raw: BitReader<'a>,
+    /// Per context, the first slot of its cluster's table.
+    base: &'a [usize; NCTX],
+    max_bin: u64,
+}
+
+impl SymCoder for Reader<'_> {
+    const ENCODES: bool = false;
+    #[inline(always)]
+    fn code(&mut self, ctx: usize, _bin: i64) -> Result<i64> {
+        let t = self.ans.symbol(self.base[ctx])? as u64;
+        let v = if t < 16 {
+            t
+        } else {
+            let e = (t - 16) / 2 + 4;
+            let top = (t - 16) & 1;
+            (1 << e) | (top << (e - 1)) | self.raw.get(e as u32 - 1)?
+        };
+        if v >> 1 > self.max_bin {
+            return Err(Error::corrupt(
+                "residual section: a bin lies outside the section's value range",
+            ));
+        }
+        Ok(varint::unzigzag(v))
+    }
+}
+
+/// What [`encode`] returns: stencil weights, the coding's bytes, the reconstruction.
+pub type Encoded = (Vec<[i16; NW]>, Vec<u8>, Vec<i64>);
+
+/// Encode the plane: the stencil weights (per pass with a correction, coarsest first), the
+/// fast coding's bytes (after the section's fixed fields, weights and exceptions) and the
+/// reconstruction.
+pub fn encode(p: &Plane, cfg: Config) -> Result<Encoded> {
+    let (w, h) = (p.width, p.height);
+    let n = w * h;
+    let mut rec = vec![0i64; n];
+    let mut mag = vec![0u8; n];
+    let mut streams: Vec<Recorder> = Vec::new();
+    // The stencils worth their bytes, fitted on the source before any pass runs; the
+    // section stores the finest levels' sets down to the coarsest level using one (zeros
+    // for a pass without).
+    let mut all = passes(cfg, p.bin);
+    let fits: Vec<Option<[i16; NW]>> = all
+        .par_iter()
+        .map(|&pass| {
+            (pass.kind != Kind::Anchor && pass.level() <= cfg.ls_levels)
+                .then(|| fit(p, pass))
+                .flatten()
+        })
+        .collect();
+    let ls_levels = all
+        .iter()
+        .zip(&fits)
+        .filter(|(_, f)| f.is_some())
+        .map(|(pass, _)| pass.level())
+        .max()
+        .unwrap_or(0);
+    let mut weights = Vec::new();
+    for (pass, f) in all.iter_mut().zip(fits) {
+        if pass.kind != Kind::Anchor && pass.level() <= ls_levels {
+            weights.push(f.unwrap_or([0; NW]));
+            pass.weights = f;
+        }
+    }
+    let g = Global::new(p);
+    for pass in all {
+        let bands = pass.bands(w, h, cfg.band_log2);
+        streams.extend(run_pass(
+            &g,
+            pass,
+            &bands,
+            (&mut rec, &mut mag),
+            |_| Ok(Recorder::default()),
+            Ok,
+        )?);
+    }
+    // Tables from the counts of every stream.
+    let mut counts = vec![[0u64; ALPHABET]; NCTX];
+    for s in &streams {
+        for (&t, &c) in s.tokens.iter().zip(&s.ctxs) {
+            counts[c as usize][t as usize] += 1;
+        }
+    }
+    let (map, clusters) = cluster(&counts);
+    let freqs: Vec<Vec<u32>> = clusters.iter().map(|c| rans::normalize(c)).collect();
+    let enc: Vec<EncTable> = freqs.iter().map(|f| EncTable::new(f)).collect();
+    let mut bits = BitWriter::default();
+    for g in 0..GROUPS {
+        for c in 1..FINE {
+            let k = g * FINE + c;
+            bits.put(u64::from(map[k] != map[k - 1]), 1);
+        }
+    }
+    for f in &freqs {
+        rans::write_table(&mut bits, f);
+    }
+    let tables = bits.finish();
+    let coded: Vec<(Vec<u8>, Vec<u8>)> = streams
+        .into_par_iter()
+        .map(|s| {
+            let ans = StreamEncoder::encode(
+                &enc,
+                s.tokens
+                    .iter()
+                    .zip(&s.ctxs)
+                    .map(|(&t, &c)| (map[c as usize] as usize, t)),
+            );
+            (ans, s.raw.finish())
+        })
+        .collect();
+    let mut out = vec![cfg.band_log2];
+    varint::put_u64(&mut out, tables.len() as u64);
+    out.extend_from_slice(&tables);
+    for (a, r) in &coded {
+        varint::put_u64(&mut out, a.len() as u64);
+        varint::put_u64(&mut out, r.len() as u64);
+    }
+    for (a, r) in &coded {
+        out.extend_from_slice(a);
+        out.extend_from_slice(r);
+    }
+    Ok((weights, out, rec))
+}
+
+/// A varint (LEB128, at most 10 bytes) from the section.
+fn read_varint(rd: &mut ByteReader, what: &str) -> Result<u64> {
+    let mut v = 0u64;
+    for k in 0..10 {
+        let b = rd.u8(what)?;
+        if k == 9 && b > 1 {
+            break;
+        }
+        v |= ((b & 0x7f) as u64) << (7 * k);
+        if b & 0x80 == 0 {
+            return Ok(v);
+        }
+    }
+    Err(rd.corrupt(format!("{what} is not a varint")))
+}
+
+/// Decode the plane from the rest of the section (`rd` just after the exceptions).
+/// `values` holds the fixed samples' values; `max_bin` bounds a bin's magnitude.
+pub fn decode(
+    rd: &mut ByteReader,
+    p: &Plane,
+    levels: u32,
+    tighten: bool,
+    weights: &[[i16; NW]],
+    max_bin: u64,
+) -> Result<Vec<i64>> {
+    let (w, h) = (p.width, p.height);
+    let band_log2 = rd.u8("band size")?;
+    if !BAND_LOG2.contains(&band_log2) {
+        return Err(rd.corrupt(format!("band size 2^{band_log2} (2^10 ..= 2^30)")));
+    }
+    let cfg = Config {
+        levels,
+        ls_levels: weights.len() as u32 / 2,
+        tighten,
+        tighten_auto: false,
+        band_log2,
+    };
+    let tlen = read_varint(rd, "tables length")?;
+    let tbytes = rd.take(usize::try_from(tlen).unwrap_or(usize::MAX), "tables")?;
+    let mut br = BitReader::new(tbytes, "tables");
+    let mut map = [0usize; NCTX];
+    let mut clusters = 0usize;
+    for g in 0..GROUPS {
+        if g > 0 {
+            clusters += 1;
+        }
+        map[g * FINE] = clusters;
+        for c in 1..FINE {
+            clusters += br.get(1)? as usize;
+            map[g * FINE + c] = clusters;
+        }
+    }
+    let clusters = clusters + 1;
+    let mut tables = Vec::with_capacity(clusters);
+    for _ in 0..clusters {
+        tables.push(rans::read_table(&mut br, ALPHABET)?);
+    }
+    br.finish()?;
+    let dec = DecTables::new(&tables);
+    let base: [usize; NCTX] = map.map(|c| c * rans::TOTAL as usize);
+    // The streams: lengths first, then the bytes.
+    let passes = passes(cfg, p.bin);
+    let mut lens = Vec::new();
+    for pass in &passes {
+        for _ in 0..pass.bands(w, h, band_log2).len() {
+            let a = read_varint(rd, "stream length")?;
+            let r = read_varint(rd, "stream length")?;
+            lens.push((a, r));
+        }
+    }
+    let mut slices = Vec::with_capacity(lens.len());
+    for (a, r) in lens {
+        let a = rd.take(usize::try_from(a).unwrap_or(usize::MAX), "entropy stream")?;
+        let r = rd.take(usize::try_from(r).unwrap_or(usize::MAX), "raw bits")?;
+        slices.push((a, r));
+    }
+    rd.finish()?;
+    let n = w * h;
+    let mut rec = vec![0i64; n];
+    let mut mag = vec![0u8; n];
+    let g = Global::new(p);
+    let mut next = 0;
+    let mut next_w = weights.iter();
+    for mut pass in passes {
+        if pass.kind != Kind::Anchor && pass.level() <= cfg.ls_levels {
+            // All-zero weights correct nothing: the plain prediction (the same values).
+            pass.weights = next_w.next().copied().filter(|w| *w != [0; NW]);
+        }
+        let bands = pass.bands(w, h, band_log2);
+        let mine = &slices[next..next + bands.len()];
+        next += bands.len();
+        run_pass(
+            &g,
+            pass,
+            &bands,
+            (&mut rec, &mut mag),
+            |b| {
+                let (a, r) = mine[b];
+                Ok(Reader {
+                    ans: StreamDecoder::new(a, &dec)?,
+                    raw: BitReader::new(r, "raw bits"),
+                    base: &base,
+                    max_bin,
+                })
+            },
+            |mut rdr| {
+                rdr.ans.finish()?;
+                rdr.raw.finish()
+            },
+        )?;
+    }
+    Ok(rec)
+}
+
+/// `round_div` is the same rounding the interior fast paths write as `(n + 8) >> 4`.
+#[cfg(test)]
+mod tests {
+    use super::super::coder::round_div;
+    use super::super::plane::FIXED;
+    use super::*;
+
+    #[test]
+    fn the_interior_rounding_is_round_div() {
+        for n in -1000..1000 {
+            assert_eq!((n + 8) >> 4, round_div(n, 16));
+        }
+    }
+
+    /// A smooth surface with noise, a hole (skipped) and a fixed patch, on a lattice.
+    fn plane_data(w: usize, h: usize) -> (Vec<u8>, Vec<i64>) {
+        let mut s = 7u64;
+        let mut kinds = vec![CODED; w * h];
+        let mut values = vec![0i64; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let i = y * w + x;
+                let (fx, fy) = (x as f64 / 7.0, y as f64 / 5.0);
+                values[i] = (400.0 * fx.sin() * fy.cos() + 30.0 * (fx * fy).sqrt()) as i64
+                    + ((s >> 60) as i64 - 8);
+                if (x as isize - 20).pow(2) + (y as isize - 15).pow(2) < 40 {
+                    kinds[i] = super::super::plane::SKIPPED;
+                }
+                if (50..58).contains(&x) && (30..40).contains(&y) {
+                    kinds[i] = FIXED;
+                    values[i] = 77;
+                }
+            }
+        }
+        (kinds, values)
+    }
+
+    #[test]
+    fn bands_round_trip_on_any_thread_count_and_every_prefix_fails() {
+        let (w, h) = (97, 83);
+        let (kinds, values) = plane_data(w, h);
+        for (bin, tighten, ls) in [(1, false, 3), (5, false, 2), (41, true, 3), (301, true, 0)] {
+            let p = Plane {
+                width: w,
+                height: h,
+                kinds: &kinds,
+                values: &values,
+                lo: *values.iter().min().unwrap(),
+                hi: *values.iter().max().unwrap(),
+                bin,
+            };
+            let cfg = Config {
+                levels: 4,
+                ls_levels: ls,
+                tighten,
+                tighten_auto: false,
+                band_log2: 10,
+            };
+            let (wts, bytes, rec) = encode(&p, cfg).unwrap();
+            assert!(wts.len() <= 2 * ls as usize);
+            for (i, (&r, &k)) in rec.iter().zip(&kinds).enumerate() {
+                if k == CODED {
+                    assert!((r - values[i]).abs() <= bin / 2, "bin {bin}: sample {i}");
+                } else if k == FIXED {
+                    assert_eq!(r, 77);
+                }
+            }
+            let max_bin = (p.hi - p.lo) as u64 / super::super::narrowest_bin(bin, 4, tighten) as u64 + 1;
+            for threads in [1, 2, 3] {
+                let back = crate::methods::with_threads(threads, || {
+                    decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, &wts, max_bin)
+                })
+                .unwrap();
+                assert_eq!(back, rec, "bin {bin}, {threads} threads");
+            }
+            for cut in (0..bytes.len()).step_by(7) {
+                let r = decode(&mut ByteReader::new(&bytes[..cut], "t"), &p, 4, tighten, &wts, max_bin);
+                assert!(r.is_err(), "bin {bin}: a prefix of {cut} bytes decoded");
+            }
+            // One flipped bit in the streams decodes to an error or other samples, never a
+            // panic.
+            for k in (bytes.len() / 2..bytes.len()).step_by(13) {
+                let mut bad = bytes.clone();
+                bad[k] ^= 0x10;
+                let _ = decode(&mut ByteReader::new(&bad, "t"), &p, 4, tighten, &wts, max_bin);
+            }
+        }
+    }
+
+    #[test]
+    fn tokens_cover_every_bin() {
+        for v in [0u64, 1, 15, 16, 17, 31, 32, 1000, (1 << 41) - 1] {
+            let (t, raw, n) = token(v);
+            assert!((t as usize) < ALPHABET);
+            let back = if t < 16 {
+                t as u64
+            } else {
+                let e = (t as u64 - 16) / 2 + 4;
+                (1 << e) | (((t as u64 - 16) & 1) << (e - 1)) | raw
+            };
+            assert_eq!(back, v);
+            assert!(n < 41);
+        }
+    }
+}
