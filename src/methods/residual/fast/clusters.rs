@@ -1,7 +1,7 @@
 //! The encoder's clusters of contexts: adjacent energy classes of a level group merged
 //! while merging saves bits (data and tables).
 
-use super::{ALPHABET, FINE, GROUPS, NCTX};
+use super::passes::{ALPHABET, FINE, GROUPS, NCTX};
 use crate::entropy::rans;
 
 /// Estimated bits of coding `counts` with its own table (data and table).

@@ -1,7 +1,8 @@
 //! What the encoder fits on the source before coding: each pass's stencil weights and
 //! whether coarse bins are narrowed.
 
-use super::{CODED, Config, FIT_SAMPLES_LOG2, Kind, NW, Pass};
+use super::passes::{Config, FIT_SAMPLES_LOG2, Kind, NW, Pass};
+use super::super::plane::CODED;
 use super::super::plane::{Plane, SKIPPED};
 
 /// Fit a pass's stencil weights on the source (encoder): the samples whose stencil lies
