@@ -1,4 +1,5 @@
-//! Encode → decode on small fuzzed rasters: every method (and `best`), every sample type,
+//! Encode → decode on small fuzzed rasters: every method (and `best`) at efforts 1, 5 and 9
+//! (the residual layer's fast coding, its default, both), every sample type,
 //! nodata holes, absolute and percent bounds and lossless. The decode must have the source's
 //! shape, type and nodata pattern, every valid sample within the bound the encoder reports
 //! (and within the requested bound), and a window decode must equal the crop.
@@ -23,6 +24,8 @@ fuzz_target!(|data: &[u8]| {
     let pick = data[3] as usize % (methods.len() + 1);
     let bound_code = data[4];
     let scale = 1u32 << (data[5] % 12);
+    // The residual layer's codings: the fast one (effort 1), the default, and all (9).
+    let effort = [1u8, vtz::DEFAULT_EFFORT, 9][(data[5] / 12) as usize % 3];
     let body = &data[6..];
     let n = width * height;
     let (lo, hi) = st.int_range().unwrap_or((-1e6, 1e6));
@@ -64,6 +67,7 @@ fuzz_target!(|data: &[u8]| {
     };
     let mut opts = EncodeOptions::default();
     opts.max_error = bound;
+    opts.effort = Some(effort);
     if pick < methods.len() {
         opts.methods = vec![methods[pick]];
     }
