@@ -42,6 +42,27 @@ def edited(data, fields=(), retype=()):
     return _recrc(data)
 
 
+def residual_claims(data, n, band_log2=None):
+    """`data` with its residual section's coded count set to n and, for the fast coding
+    (codings 2, 3), its band size exponent set (a large one makes one band per pass, so the
+    stream directory fits any raster size); the section's and header's CRCs recomputed."""
+    d = bytearray(data)
+    hlen = struct.unpack_from("<I", d, 12)[0]
+    pos = _dir_at(d)
+    count = struct.unpack_from("<I", d, pos)[0]
+    off = pos + 4 + 16 * count + 4
+    for k in range(count):
+        at = pos + 4 + 16 * k
+        kind, _, _, length = struct.unpack_from("<HHIQ", d, at)
+        if kind == 6 and length >= 73:
+            struct.pack_into("<Q", d, off + 64, n)
+            if band_log2 is not None and d[off] in (2, 3):
+                d[off + 72 + 20 * d[off + 3]] = band_log2
+            struct.pack_into("<I", d, at + 4, zlib.crc32(bytes(d[off:off + length])))
+        off += length
+    return _recrc(d)
+
+
 def variants(data):
     """[(name, bytes)]: the hostile edits of one valid file."""
     version = struct.unpack_from("<H", data, 8)[0]
@@ -56,6 +77,10 @@ def variants(data):
             out.append((f"size{nw}x{nh}", edited(data, f)))
             out.append((f"size{nw}x{nh}.nomask", edited(data, f, (MASK,))))
             out.append((f"size{nw}x{nh}.nomaskflat", edited(data, f, (MASK, FLAT))))
+            # The residual section claiming every sample, as one band per pass.
+            claim = residual_claims(edited(data, f, (MASK, FLAT)), nw * nh, 30)
+            if claim != edited(data, f, (MASK, FLAT)):
+                out.append((f"size{nw}x{nh}.residualclaims", claim))
         if version == 2:
             # The tile fields end the header body: tile_width, tile_height, margin, index.
             t = 16 + hlen - 28
