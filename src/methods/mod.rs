@@ -197,7 +197,18 @@ pub(crate) trait Representation: Sync {
     /// Decode the job's window; methods that can evaluate a window alone override this.
     fn decode(&self, job: &DecodeJob) -> Result<Vec<f64>> {
         let full = self.decode_full(job)?;
-        Ok(crop(&full, job.header.width as usize, job.window))
+        let (w, h) = (job.header.width as usize, job.header.height as usize);
+        if (
+            job.window.x,
+            job.window.y,
+            job.window.width,
+            job.window.height,
+        ) == (0, 0, w, h)
+        {
+            // The whole raster: no copy.
+            return Ok(full);
+        }
+        Ok(crop(&full, w, job.window))
     }
     /// Whether the payload is progressive (a prefix of `--sites N` / `--level K` decodes).
     fn progressive(&self) -> bool {

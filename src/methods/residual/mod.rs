@@ -675,15 +675,7 @@ pub(crate) fn decode(
     st.rec
     };
     let fill = header.nodata.unwrap_or(f64::NAN);
-    let value = lattice_value(domain, header);
-    let mut out: Vec<f64> = if kinds.is_empty() {
-        rec.par_iter().map(|&k| value(k)).collect()
-    } else {
-        rec.par_iter()
-            .zip(&kinds)
-            .map(|(&k, &kind)| if kind == SKIPPED { fill } else { value(k) })
-            .collect()
-    };
+    let mut out = lattice_values(&rec, &kinds, fill, domain, header);
     for (s, l, v) in flat.into_iter().flat_map(Flat::runs) {
         out[s..s + l].fill(v);
     }
@@ -693,19 +685,41 @@ pub(crate) fn decode(
     Ok(out)
 }
 
-/// A coded sample's value from its lattice index: `finish_value(domain.raw(k))`, without
-/// the multiplication, division and rounding where the lattice is the integers and the
-/// sample type's codes are the values (the same result: every step is exact).
-fn lattice_value(domain: Domain, header: &Header) -> impl Fn(i64) -> f64 + Sync + '_ {
+/// The coded samples' values from their lattice indices (`kinds` empty: all coded; a
+/// skipped sample gets `fill`): `finish_value(domain.raw(k))`, without the
+/// multiplication, division and rounding where the lattice is the integers and the sample
+/// type's codes are the values (the same result: every step is exact). The case is chosen
+/// once, so the loop over the samples holds no branch but the kinds'.
+fn lattice_values(rec: &[i64], kinds: &[u8], fill: f64, domain: Domain, header: &Header) -> Vec<f64> {
     let ident = domain.mul == 1.0 && domain.div == 1.0 && domain.offset == 0.0;
     let int_codes = (header.mapping.scale == 1.0 && header.mapping.offset == 0.0)
         .then(|| header.sample_type.int_range())
         .flatten();
-    move |k| match (ident, int_codes) {
-        (true, Some((lo, hi))) => (k as f64).clamp(lo, hi),
-        (true, None) => crate::quant::finish_value(k as f64, header),
-        _ => finish_value(domain.raw(k), header),
+    match (ident, int_codes) {
+        (true, Some((lo, hi))) => map_values(rec, kinds, fill, |k| (k as f64).clamp(lo, hi)),
+        (true, None) => map_values(rec, kinds, fill, |k| crate::quant::finish_value(k as f64, header)),
+        _ => map_values(rec, kinds, fill, |k| finish_value(domain.raw(k), header)),
     }
+}
+
+/// [`lattice_values`] with the value function chosen, in chunks on all threads.
+fn map_values(rec: &[i64], kinds: &[u8], fill: f64, value: impl Fn(i64) -> f64 + Sync) -> Vec<f64> {
+    const CHUNK: usize = 1 << 16;
+    let mut out = vec![0f64; rec.len()];
+    out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, o)| {
+        let r = &rec[c * CHUNK..c * CHUNK + o.len()];
+        if kinds.is_empty() {
+            for (o, &k) in o.iter_mut().zip(r) {
+                *o = value(k);
+            }
+        } else {
+            let kd = &kinds[c * CHUNK..c * CHUNK + o.len()];
+            for ((o, &k), &kind) in o.iter_mut().zip(r).zip(kd) {
+                *o = if kind == SKIPPED { fill } else { value(k) };
+            }
+        }
+    });
+    out
 }
 
 /// The narrowest bin width of an interpolation coding with `levels` levels.
