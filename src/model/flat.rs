@@ -77,51 +77,58 @@ pub(crate) fn find(r: &Raster) -> Option<Vec<f64>> {
         return None;
     }
     let h = n / w;
-    // Components of equal value.
+    let (bw, bh) = (w.div_ceil(BLOCK), h.div_ceil(BLOCK));
+    // Blocks (clipped at the edges) whose samples are all valid and of one value: the only
+    // ones a region can keep, since a block lies wholly in a component of one value only
+    // if it is uniform, and a uniform block is 4-connected, so it lies in one component.
+    // On a raster without flat areas this looks at a sample or two per block and ends
+    // here, without labelling every sample's component.
+    let uniform = |bx: usize, by: usize| {
+        let (x0, y0) = (bx * BLOCK, by * BLOCK);
+        let (x1, y1) = ((x0 + BLOCK).min(w), (y0 + BLOCK).min(h));
+        let v = r.data[y0 * w + x0];
+        (y0..y1).all(|y| (y * w + x0..y * w + x1).all(|i| r.is_valid(i) && r.data[i] == v))
+    };
+    let cand: Vec<usize> = (0..bw * bh).filter(|&b| uniform(b % bw, b / bw)).collect();
+    if cand.is_empty() {
+        return None;
+    }
+    // The components of equal value that hold a candidate block (4-connected, valid),
+    // labelled from the blocks' first samples; their sizes.
     let mut comp = vec![u32::MAX; n];
     let mut sizes: Vec<usize> = Vec::new();
     let mut stack = Vec::new();
-    for s in 0..n {
-        if comp[s] != u32::MAX || !r.is_valid(s) {
-            continue;
-        }
-        let id = sizes.len() as u32;
-        let v = r.data[s];
-        let mut size = 0usize;
-        comp[s] = id;
-        stack.push(s);
-        while let Some(i) = stack.pop() {
-            size += 1;
-            let x = i % w;
-            let nb = [
-                (x > 0).then(|| i - 1),
-                (x + 1 < w).then(|| i + 1),
-                (i >= w).then(|| i - w),
-                (i + w < n).then(|| i + w),
-            ];
-            for j in nb.into_iter().flatten() {
-                if comp[j] == u32::MAX && r.is_valid(j) && r.data[j] == v {
-                    comp[j] = id;
-                    stack.push(j);
+    let mut block = vec![u32::MAX; bw * bh];
+    for &b in &cand {
+        let s = (b / bw) * BLOCK * w + (b % bw) * BLOCK;
+        if comp[s] == u32::MAX {
+            let id = sizes.len() as u32;
+            let v = r.data[s];
+            let mut size = 0usize;
+            comp[s] = id;
+            stack.push(s);
+            while let Some(i) = stack.pop() {
+                size += 1;
+                let x = i % w;
+                let nb = [
+                    (x > 0).then(|| i - 1),
+                    (x + 1 < w).then(|| i + 1),
+                    (i >= w).then(|| i - w),
+                    (i + w < n).then(|| i + w),
+                ];
+                for j in nb.into_iter().flatten() {
+                    if comp[j] == u32::MAX && r.is_valid(j) && r.data[j] == v {
+                        comp[j] = id;
+                        stack.push(j);
+                    }
                 }
             }
+            sizes.push(size);
         }
-        sizes.push(size);
-    }
-    // Per block the component it lies wholly in (of at least MIN_REGION samples), if any.
-    let (bw, bh) = (w.div_ceil(BLOCK), h.div_ceil(BLOCK));
-    let mut block = vec![u32::MAX; bw * bh];
-    for by in 0..bh {
-        for bx in 0..bw {
-            let (x0, y0) = (bx * BLOCK, by * BLOCK);
-            let (x1, y1) = ((x0 + BLOCK).min(w), (y0 + BLOCK).min(h));
-            let c = comp[y0 * w + x0];
-            if c == u32::MAX || sizes[c as usize] < MIN_REGION {
-                continue;
-            }
-            if (y0..y1).all(|y| comp[y * w + x0..y * w + x1].iter().all(|&k| k == c)) {
-                block[by * bw + bx] = c;
-            }
+        // Per block the component it lies wholly in (of at least MIN_REGION samples).
+        let c = comp[s];
+        if sizes[c as usize] >= MIN_REGION {
+            block[b] = c;
         }
     }
     // Blocks of different components that touch both go.
@@ -170,4 +177,179 @@ pub(crate) fn find(r: &Raster) -> Option<Vec<f64>> {
         })
         .collect();
     any.then_some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::SampleType;
+    use crate::testutil::{Rng, for_each_corpus, load_raw};
+
+    // The definition, written out (the encoder's code before it labelled only the
+    // components that hold a uniform block): every sample's component of equal value
+    // labelled, then the blocks lying wholly in one of ≥ MIN_REGION samples.
+    fn find_reference(r: &Raster) -> Option<Vec<f64>> {
+        let (w, n) = (r.width, r.len());
+        if w == 0 || n == 0 {
+            return None;
+        }
+        let h = n / w;
+        // Components of equal value.
+        let mut comp = vec![u32::MAX; n];
+        let mut sizes: Vec<usize> = Vec::new();
+        let mut stack = Vec::new();
+        for s in 0..n {
+            if comp[s] != u32::MAX || !r.is_valid(s) {
+                continue;
+            }
+            let id = sizes.len() as u32;
+            let v = r.data[s];
+            let mut size = 0usize;
+            comp[s] = id;
+            stack.push(s);
+            while let Some(i) = stack.pop() {
+                size += 1;
+                let x = i % w;
+                let nb = [
+                    (x > 0).then(|| i - 1),
+                    (x + 1 < w).then(|| i + 1),
+                    (i >= w).then(|| i - w),
+                    (i + w < n).then(|| i + w),
+                ];
+                for j in nb.into_iter().flatten() {
+                    if comp[j] == u32::MAX && r.is_valid(j) && r.data[j] == v {
+                        comp[j] = id;
+                        stack.push(j);
+                    }
+                }
+            }
+            sizes.push(size);
+        }
+        // Per block the component it lies wholly in (of at least MIN_REGION samples), if any.
+        let (bw, bh) = (w.div_ceil(BLOCK), h.div_ceil(BLOCK));
+        let mut block = vec![u32::MAX; bw * bh];
+        for by in 0..bh {
+            for bx in 0..bw {
+                let (x0, y0) = (bx * BLOCK, by * BLOCK);
+                let (x1, y1) = ((x0 + BLOCK).min(w), (y0 + BLOCK).min(h));
+                let c = comp[y0 * w + x0];
+                if c == u32::MAX || sizes[c as usize] < MIN_REGION {
+                    continue;
+                }
+                if (y0..y1).all(|y| comp[y * w + x0..y * w + x1].iter().all(|&k| k == c)) {
+                    block[by * bw + bx] = c;
+                }
+            }
+        }
+        // Blocks of different components that touch both go.
+        let mut drop = vec![false; bw * bh];
+        for b in 0..bw * bh {
+            if block[b] == u32::MAX {
+                continue;
+            }
+            for j in [
+                (b % bw + 1 < bw).then(|| b + 1),
+                (b + bw < bw * bh).then(|| b + bw),
+            ]
+            .into_iter()
+            .flatten()
+            {
+                if block[j] != u32::MAX && block[j] != block[b] {
+                    drop[b] = true;
+                    drop[j] = true;
+                }
+            }
+        }
+        let kept: Vec<bool> = (0..bw * bh)
+            .map(|b| block[b] != u32::MAX && !drop[b])
+            .collect();
+        let mut flat: Vec<bool> = (0..n)
+            .map(|i| kept[(i / w / BLOCK) * bw + (i % w) / BLOCK])
+            .collect();
+        // Regions (as a decoder labels them) below the minimum go.
+        let (lab, count) = label(&flat, w);
+        let mut region_size = vec![0usize; count as usize + 1];
+        for &l in &lab {
+            region_size[l as usize] += 1;
+        }
+        for i in 0..n {
+            flat[i] &= region_size[lab[i] as usize] >= MIN_PIECE;
+        }
+        let mut any = false;
+        let out: Vec<f64> = (0..n)
+            .map(|i| {
+                if flat[i] {
+                    any = true;
+                    r.data[i]
+                } else {
+                    f64::NAN
+                }
+            })
+            .collect();
+        any.then_some(out)
+    }
+
+    fn same(a: &Option<Vec<f64>>, b: &Option<Vec<f64>>) -> bool {
+        match (a, b) {
+            (None, None) => true,
+            (Some(a), Some(b)) => {
+                a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+            }
+            _ => false,
+        }
+    }
+
+    /// Terraces, lakes touching each other, nodata holes, plateaus below MIN_REGION, a
+    /// narrow waist: every layout gives the reference's regions.
+    #[test]
+    fn find_matches_the_definition() {
+        let mut rng = Rng(11);
+        let mut found = 0;
+        for case in 0..40 {
+            let (w, h) = (40 + rng.below(160) as usize, 30 + rng.below(150) as usize);
+            let mut data = vec![0f64; w * h];
+            for (i, d) in data.iter_mut().enumerate() {
+                *d = (i % 7) as f64 * 0.5 + rng.below(3) as f64;
+            }
+            for _ in 0..1 + rng.below(5) {
+                let (x0, y0) = (rng.below(w as u64) as usize, rng.below(h as u64) as usize);
+                let (rw, rh) = (1 + rng.below(120) as usize, 1 + rng.below(120) as usize);
+                let v = [10.0, 20.0, 10.0, -3.5][rng.below(4) as usize];
+                for y in y0..(y0 + rh).min(h) {
+                    for x in x0..(x0 + rw).min(w) {
+                        data[y * w + x] = v;
+                    }
+                }
+            }
+            let nodata = (case % 3 == 0).then_some(-9999.0);
+            if nodata.is_some() {
+                for _ in 0..rng.below(300) {
+                    data[rng.below((w * h) as u64) as usize] = -9999.0;
+                }
+            }
+            let r = Raster::from_values(w, h, data, nodata, SampleType::F32).unwrap();
+            let (got, want) = (find(&r), find_reference(&r));
+            assert!(same(&got, &want), "case {case}: {w}x{h}");
+            found += usize::from(got.is_some());
+        }
+        // Both outcomes occur: some layouts keep regions, others none.
+        assert!(
+            (5..35).contains(&found),
+            "{found} of 40 layouts with regions"
+        );
+    }
+
+    #[test]
+    fn find_matches_the_definition_on_the_corpus() {
+        let names = [
+            "srtm3_N22W160_kauai",
+            "srtm3_N57E011_kattegat",
+            "scape_crater",
+            "ahn3_delft_dsm_50cm",
+        ];
+        for_each_corpus(&names, |dir, name| {
+            let r = load_raw(dir, name);
+            assert!(same(&find(&r), &find_reference(&r)), "{name}");
+        });
+    }
 }

@@ -49,9 +49,30 @@ fn exact(r: &Raster, d: Domain) -> Option<Vec<i64>> {
 fn near(r: &Raster, d: Domain, misses: usize) -> Option<(Vec<i64>, Vec<usize>)> {
     let mut out = vec![0i64; r.len()];
     let mut off = Vec::new();
+    // On the whole numbers (most DEMs), a whole value v in range is its own index and its
+    // own finished value: the same answer as the general test below, without its roundings
+    // (a library call each on baseline x86-64).
+    let whole = d == Domain { mul: 1.0, div: 1.0, offset: 0.0 };
+    let own_value: fn(f64) -> bool = match (r.sample_type, r.sample_type.int_range()) {
+        (SampleType::F32, _) => |v| v as f32 as f64 == v,
+        (SampleType::F64, _) => |_| true,
+        _ => |_| false,
+    };
+    let int_own = r.mapping.is_identity().then(|| r.sample_type.int_range()).flatten();
     for (i, &v) in r.data.iter().enumerate() {
         if !r.is_valid(i) {
             continue;
+        }
+        if whole {
+            let k = v as i64;
+            let own = match int_own {
+                Some((lo, hi)) => v >= lo && v <= hi,
+                None => own_value(v),
+            };
+            if k as f64 == v && k.abs() <= MAX_UNITS && own {
+                out[i] = k;
+                continue;
+            }
         }
         let k = d.index(v);
         if k.is_nan() || k.abs() > MAX_UNITS as f64 {
@@ -211,4 +232,68 @@ pub fn approximate(r: &Raster, e: f64) -> Option<(Domain, Vec<i64>)> {
         }
     }
     Some((d, out))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::ValueMapping;
+    use crate::testutil::Rng;
+
+    /// `near` without its whole-number shortcut: the general test for every sample.
+    fn near_reference(r: &Raster, d: Domain, misses: usize) -> Option<(Vec<i64>, Vec<usize>)> {
+        let mut out = vec![0i64; r.len()];
+        let mut off = Vec::new();
+        for (i, &v) in r.data.iter().enumerate() {
+            if !r.is_valid(i) {
+                continue;
+            }
+            let k = d.index(v);
+            if k.is_nan() || k.abs() > MAX_UNITS as f64 {
+                return None;
+            }
+            let k = k as i64;
+            if finish(d.raw(k), r.sample_type, r.mapping) != v {
+                if off.len() == misses {
+                    return None;
+                }
+                off.push(i);
+            }
+            out[i] = k;
+        }
+        Some((out, off))
+    }
+
+    /// Whole, fractional, signed-zero, out-of-range and off-f32 values on every sample
+    /// type and mapping: the shortcut gives the general test's indices and misses.
+    #[test]
+    fn the_whole_number_shortcut_is_the_general_test() {
+        let mut rng = Rng(5);
+        let whole = Domain { mul: 1.0, div: 1.0, offset: 0.0 };
+        let tenth = Domain { mul: 1.0, div: 10.0, offset: 0.0 };
+        let specials = [-0.0, 0.0, 0.5, -1.5, 32767.0, 32768.0, -32769.0, 65535.0, 1e12, 3e11, 16777217.0, 0.1];
+        for st in [SampleType::F32, SampleType::F64, SampleType::I16, SampleType::U16, SampleType::U8] {
+            for mapping in [ValueMapping { scale: 1.0, offset: 0.0 }, ValueMapping { scale: 0.5, offset: -10.0 }] {
+                for case in 0..20 {
+                    let n = 200;
+                    let data: Vec<f64> = (0..n)
+                        .map(|_| {
+                            if case % 4 == 0 && rng.below(10) == 0 {
+                                specials[rng.below(specials.len() as u64) as usize]
+                            } else {
+                                rng.below(3000) as f64 - 1000.0
+                            }
+                        })
+                        .collect();
+                    let mut r = Raster::from_values(20, 10, data, None, SampleType::F64).unwrap();
+                    (r.sample_type, r.mapping) = (st, mapping);
+                    for d in [whole, tenth] {
+                        for misses in [0, 3, 50] {
+                            assert_eq!(near(&r, d, misses), near_reference(&r, d, misses), "{st:?} {mapping:?} case {case}");
+                        }
+                    }
+                }
+            }
+        }
+    }
 }

@@ -16,6 +16,8 @@ pub(super) fn fit(p: &Plane, pass: Pass) -> Option<[i16; NW]> {
     let along = if pass.kind == Kind::Vertical { (w * s) as isize } else { s as isize };
     // Ten weights are fitted well from ~2^15 samples: rows evenly spread to about that many.
     let step = ((pass.rows(h) * pass.cols(w)) >> FIT_SAMPLES_LOG2).max(1);
+    // Without skipped samples no stencil point needs its kind looked up.
+    let skips = p.kinds.contains(&SKIPPED);
     // Calls `f(features, target)` for every sample the fit uses.
     let each = |f: &mut dyn FnMut(&[i64; NW], i64)| {
         for k in (0..pass.rows(h)).step_by(step) {
@@ -34,7 +36,7 @@ pub(super) fn fit(p: &Plane, pass: Pass) -> Option<[i16; NW]> {
                     _ => x >= 3 * s && x + 3 * s < w,
                 };
                 let i = y * w + x;
-                if !inside || p.kinds[i] == SKIPPED {
+                if !inside || (skips && p.kinds[i] == SKIPPED) {
                     continue;
                 }
                 let at = |d: isize| p.values[(i as isize + d * along) as usize];
@@ -43,7 +45,7 @@ pub(super) fn fit(p: &Plane, pass: Pass) -> Option<[i16; NW]> {
                 let mut ok = true;
                 for (fk, o) in fs.iter_mut().zip(offs) {
                     let j = (i as isize + o) as usize;
-                    ok &= p.kinds[j] != SKIPPED;
+                    ok &= !skips || p.kinds[j] != SKIPPED;
                     *fk = p.values[j] - base;
                 }
                 if ok {
