@@ -153,9 +153,17 @@ pub(crate) fn find(r: &Raster) -> Option<Vec<f64>> {
     let kept: Vec<bool> = (0..bw * bh)
         .map(|b| block[b] != u32::MAX && !drop[b])
         .collect();
-    let mut flat: Vec<bool> = (0..n)
-        .map(|i| kept[(i / w / BLOCK) * bw + (i % w) / BLOCK])
-        .collect();
+    if !kept.contains(&true) {
+        return None;
+    }
+    // The kept blocks' samples, row by row and block by block.
+    let mut flat = vec![false; n];
+    for (y, row) in flat.chunks_mut(w).enumerate() {
+        let ks = &kept[(y / BLOCK) * bw..(y / BLOCK + 1) * bw];
+        for (cell, _) in row.chunks_mut(BLOCK).zip(ks).filter(|(_, k)| **k) {
+            cell.fill(true);
+        }
+    }
     // Regions (as a decoder labels them) below the minimum go.
     let (lab, count) = label(&flat, w);
     let mut region_size = vec![0usize; count as usize + 1];
