@@ -15,6 +15,8 @@ The pipeline a GIS user runs, end to end, timed:
 
    - ``vtz``: ``vtz.zarr.VtzCodec(max_error=E, nodata=..., threads=1)`` (method ``best``);
    - ``vtz-residual``: the same with ``method="residual"`` (no trials of other methods);
+   - ``vtz-e1``, ``vtz-residual-e1``: the same two at ``effort=1`` (the residual layer's
+     fast coding; the others use the library's default effort, 5);
    - ``lerc``: imagecodecs' numcodecs ``Lerc(level=E)``; ``lerc-zstd`` adds LERC's own zstd
      stage (``compression="zstd"``, as GDAL's LERC_ZSTD);
    - ``sz3``: SZ3 through ``pysz`` in absolute-error mode.
@@ -82,7 +84,7 @@ REPO = HERE.parent.parent
 DEFAULT_SOURCE = Path("/work/shared/corpus/extra/srtm1_N45E013_full.png")
 TEST_SOURCE = REPO / "corpus" / "srtm30m_bigtujunga_utm11.tif"
 VAR = "elevation"
-CODECS = ("vtz", "vtz-residual", "lerc", "lerc-zstd", "sz3")
+CODECS = ("vtz", "vtz-residual", "vtz-e1", "vtz-residual-e1", "lerc", "lerc-zstd", "sz3")
 
 
 # ---------------------------------------------------------------------------------------
@@ -359,6 +361,13 @@ def make_serializer(codec: str, max_error: float, nodata: float | None) -> Array
         import vtz.zarr
 
         return vtz.zarr.VtzCodec(max_error=max_error, nodata=nodata, method="residual", threads=1)
+    if codec in ("vtz-e1", "vtz-residual-e1"):
+        # Effort 1: the residual layer's fast coding (with `best`, also its method choice).
+        import vtz.zarr
+
+        method = "residual" if codec == "vtz-residual-e1" else None
+        return vtz.zarr.VtzCodec(max_error=max_error, nodata=nodata, method=method, threads=1,
+                                 effort=1)
     if codec == "lerc":
         return NumcodecsSerializer({"id": "imagecodecs_lerc", "level": max_error})
     if codec == "lerc-zstd":
@@ -732,6 +741,20 @@ def markdown(summary: dict, meta: dict) -> str:
         for q in summary["ratios"]:
             out.append(f"| {q['bound']:g} | {q['vs']} | {q['vtz_bytes']:,} | "
                        f"{q['other_bytes']:,} | {q['ratio']:.3f} |")
+    lerc = {(r["bound"], r["workers"]): r for r in summary["rows"] if r["codec"] == "lerc"}
+    if lerc and len(summary["rows"]) > len(lerc):
+        out += ["", "Each codec over LERC at the same bound and workers (medians; the "
+                "Pipelines target of issue 26: write <= 3x, read <= 2x, bytes <= 0.25x):", "",
+                "| codec | bound | workers | write s | read s | array bytes | write / LERC | "
+                "read / LERC | bytes / LERC |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+        for r in summary["rows"]:
+            ref = lerc.get((r["bound"], r["workers"]))
+            if ref is None or r["codec"] == "lerc":
+                continue
+            out.append(f"| {r['codec']} | {r['bound']:g} | {r['workers']} | {r['write_s']:.2f} | "
+                       f"{r['read_s']:.2f} | {r['array_bytes']:,} | "
+                       f"{r['write_s'] / ref['write_s']:.1f}x | {r['read_s'] / ref['read_s']:.1f}x | "
+                       f"{r['array_bytes'] / ref['array_bytes']:.3f} |")
     return "\n".join(out) + "\n"
 
 

@@ -48,7 +48,7 @@ fn to_py(py: Python<'_>, e: Error) -> PyErr {
 /// Python caller reads its own keyword arguments instead (`scale=`, `max_error=`). Flags
 /// with no keyword in this package are left as they are.
 fn python_words(msg: &str) -> String {
-    const WORDS: [(&str, &str); 9] = [
+    const WORDS: [(&str, &str); 10] = [
         ("--max-error", "max_error="),
         ("--lossless", "lossless=True"),
         ("--scale", "scale="),
@@ -58,6 +58,7 @@ fn python_words(msg: &str) -> String {
         ("--section", "section="),
         ("--force", "overwrite=True"),
         ("--nodata", "nodata="),
+        ("--effort", "effort="),
     ];
     let mut out = String::with_capacity(msg.len());
     let mut rest = msg;
@@ -207,14 +208,43 @@ fn parse_bound(py: Python<'_>, b: &Bound<'_, PyAny>) -> PyResult<ErrorBound> {
     Ok(ErrorBound::Abs(v))
 }
 
+/// The encoder effort: `None` (the library's default), or an integer 1..=9; anything else
+/// (0, 10, -1, a float, a string, a bool) is an `InvalidArgumentError` naming the range.
+fn parse_effort(py: Python<'_>, e: Option<&Bound<'_, PyAny>>) -> PyResult<Option<u8>> {
+    let Some(e) = e.filter(|e| !e.is_none()) else {
+        return Ok(None);
+    };
+    let shown = || {
+        e.repr()
+            .map_or_else(|_| "?".to_string(), |r| r.to_string_lossy().into_owned())
+    };
+    let k = if e.is_instance_of::<pyo3::types::PyBool>() {
+        None
+    } else {
+        e.extract::<i64>().ok()
+    };
+    match k {
+        Some(k @ 1..=9) => Ok(Some(k as u8)),
+        _ => Err(invalid(
+            py,
+            format!(
+                "effort {} is not an integer in 1..=9 (None = the default, 5)",
+                shown()
+            ),
+        )),
+    }
+}
+
 fn encode_options(
     py: Python<'_>,
     max_error: Option<&Bound<'_, PyAny>>,
     lossless: bool,
     method: Option<&str>,
+    effort: Option<&Bound<'_, PyAny>>,
     threads: usize,
 ) -> PyResult<EncodeOptions> {
     let mut o = EncodeOptions::default();
+    o.effort = parse_effort(py, effort)?;
     if let Some(b) = max_error {
         if lossless {
             return Err(invalid(
@@ -254,7 +284,8 @@ fn raster_from(
 
 /// Encode a 2-D array; returns the vtz bytes.
 #[pyfunction]
-#[pyo3(signature = (array, max_error=None, lossless=false, nodata=None, method=None, threads=0))]
+#[pyo3(signature = (array, max_error=None, lossless=false, nodata=None, method=None, threads=0, effort=None))]
+#[allow(clippy::too_many_arguments)]
 fn encode<'py>(
     py: Python<'py>,
     array: &Bound<'py, PyUntypedArray>,
@@ -263,8 +294,9 @@ fn encode<'py>(
     nodata: Option<f64>,
     method: Option<&str>,
     threads: usize,
+    effort: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyBytes>> {
-    let opts = encode_options(py, max_error, lossless, method, threads)?;
+    let opts = encode_options(py, max_error, lossless, method, effort, threads)?;
     let raster = raster_from(py, array, nodata)?;
     let bytes = py
         .detach(|| on_threads(threads, || vtz::encode(&raster, &opts)).and_then(|r| r))
@@ -461,7 +493,7 @@ fn read<'py>(py: Python<'py>, path: std::path::PathBuf) -> PyResult<Bound<'py, P
 /// Write an array to a raster file (the format from the extension; `.vtz` is encoded with
 /// the bound given). `georef`: `(transform 6-tuple, epsg or None, wkt or None)`.
 #[pyfunction]
-#[pyo3(signature = (path, array, nodata=None, transform=None, epsg=None, wkt=None, max_error=None, lossless=false, method=None, force=true, threads=0))]
+#[pyo3(signature = (path, array, nodata=None, transform=None, epsg=None, wkt=None, max_error=None, lossless=false, method=None, force=true, threads=0, effort=None))]
 #[allow(clippy::too_many_arguments)]
 fn write<'py>(
     py: Python<'py>,
@@ -476,8 +508,9 @@ fn write<'py>(
     method: Option<&str>,
     force: bool,
     threads: usize,
+    effort: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<()> {
-    let opts = encode_options(py, max_error, lossless, method, threads)?;
+    let opts = encode_options(py, max_error, lossless, method, effort, threads)?;
     let mut raster = raster_from(py, array, nodata)?;
     if let Some((a, b, c, d, e, f)) = transform {
         if b != 0.0 || d != 0.0 {

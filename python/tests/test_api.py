@@ -71,6 +71,37 @@ def test_corpus_rasters_hold_the_bound_and_keep_georeferencing():
         assert np.array_equal(d[~valid], a[~valid])
 
 
+def test_effort_chooses_the_residual_coding_and_keeps_the_bound():
+    """effort=1 writes the residual layer's fast coding: other bytes than the default
+    effort's (5), and both hold the bound on a real raster; None is the default itself."""
+    a, prof = vtz.read(KAUAI)
+    nodata = prof["nodata"]
+    valid = a != nodata
+    streams = {}
+    for effort in (None, 1, 5, 9):
+        b = vtz.encode(a, max_error=1, nodata=nodata, method="residual", effort=effort)
+        assert vtz.info(b)["method"] == "residual"
+        d = vtz.decode(b)
+        assert np.abs(d.astype(np.int64) - a.astype(np.int64))[valid].max() <= 1
+        assert np.array_equal(d[~valid], a[~valid])
+        streams[effort] = b
+    assert streams[None] == streams[5]
+    assert streams[1] != streams[5]
+    # numpy integers are integers too
+    assert vtz.encode(a, max_error=1, nodata=nodata, method="residual",
+                      effort=np.int8(1)) == streams[1]
+
+
+@pytest.mark.parametrize("effort", [0, 10, -1, 300, 2**70, 2.0, "5", True])
+def test_effort_out_of_range_is_a_clear_error(effort, tmp_path):
+    a = terrain(20, 20, np.int16)
+    with pytest.raises(vtz.InvalidArgumentError, match=r"effort .* is not an integer in 1\.\.=9"):
+        vtz.encode(a, max_error=1, effort=effort)
+    with pytest.raises(vtz.InvalidArgumentError, match=r"1\.\.=9"):
+        vtz.write(tmp_path / "a.vtz", a, max_error=1, effort=effort)
+    assert not (tmp_path / "a.vtz").exists()
+
+
 def test_percent_bound_and_method_choice():
     a = terrain(40, 40, np.float32)
     rng = float(a.max() - a.min())

@@ -161,6 +161,33 @@ def test_numcodecs_config_json_round_trip():
     assert json.loads(json.dumps(Vtz().get_config())) == Vtz().get_config()
 
 
+def test_numcodecs_effort_in_the_config():
+    """``effort`` is recorded when set, reaches the encoder, and a configuration written
+    before it existed (none) still loads as the default."""
+    a, profile = corpus("srtm3_N22W160_kauai.hgt")
+    a = np.ascontiguousarray(a[:400, :400])
+    codec = Vtz(max_error=1.0, method="residual", effort=1)
+    config = codec.get_config()
+    assert config["effort"] == 1
+    back = numcodecs.get_codec(json.loads(json.dumps(config, allow_nan=False)))
+    assert back == codec and back.effort == 1
+    enc = back.encode(a)
+    assert enc == vtz.encode(a, max_error=1.0, method="residual", effort=1)
+    assert enc != Vtz(max_error=1.0, method="residual").encode(a)
+    check_decoded(a, back.decode(enc), 1.0)
+    old = {"id": "vtz", "max_error": 1.0, "lossless": False, "nodata": None,
+           "method": "residual", "threads": 1}
+    assert Vtz.from_config(old).effort is None
+    assert Vtz.from_config(old) == Vtz(max_error=1.0, method="residual")
+    assert "effort" not in Vtz().get_config()
+    assert Vtz(effort=np.int64(2)).get_config()["effort"] == 2
+    with pytest.raises(vtz.InvalidArgumentError, match=r"1\.\.=9"):
+        Vtz(effort="fast")
+    # an effort outside 1..9 loads (a store opens for reading) and fails when encoding
+    with pytest.raises(vtz.InvalidArgumentError, match=r"effort 10 is not an integer in 1\.\.=9"):
+        Vtz.from_config({"id": "vtz", "effort": 10}).encode(a)
+
+
 def test_numcodecs_nan_nodata_is_none():
     """NaN is always nodata in float chunks: ``nodata=NaN`` is stored as ``None`` (JSON-safe)."""
     codec = Vtz(max_error=0.5, nodata=float("nan"))
@@ -305,6 +332,38 @@ def test_zarr_codec_dict_round_trip():
         VtzCodec.from_dict({"name": "bytes", "configuration": {}})
     with pytest.raises(vtz.InvalidArgumentError, match="exclude each other"):
         VtzCodec(max_error=1, lossless=True)
+
+
+def test_zarr_codec_effort_round_trips(tmp_path):
+    """``effort`` goes into the store's metadata, comes back when the store is opened, and
+    the chunks it wrote decode within the bound; a configuration without it loads."""
+    a, profile = corpus("srtm3_N22W160_kauai.hgt")
+    nodata = int(profile["nodata"])
+    a = np.ascontiguousarray(a[:600, :600])
+    codec = VtzCodec(max_error=1, nodata=nodata, method="residual", effort=1)
+    assert codec.to_dict()["configuration"]["effort"] == 1
+    assert VtzCodec.from_dict(json.loads(json.dumps(codec.to_dict()))) == codec
+    assert codec != VtzCodec(max_error=1, nodata=nodata, method="residual")
+    v3_array(zarr.storage.LocalStore(tmp_path / "e.zarr"), a, (300, 300), codec,
+             fill_value=nodata)
+    meta = json.loads((tmp_path / "e.zarr" / "zarr.json").read_text())
+    assert meta["codecs"][0]["configuration"]["effort"] == 1
+    z = zarr.open_array(zarr.storage.LocalStore(tmp_path / "e.zarr"), mode="r")
+    assert z.metadata.codecs[0] == codec
+    check_decoded(a, z[...], 1, nodata=nodata)
+    chunk = (tmp_path / "e.zarr" / "c" / "0" / "0").read_bytes()
+    assert chunk == vtz.encode(np.ascontiguousarray(a[:300, :300]), max_error=1, nodata=nodata,
+                               method="residual", threads=1, effort=1)
+    old = {"name": "vtz", "configuration": {"max_error": 1.0, "lossless": False,
+                                            "nodata": -1, "method": None, "threads": 1}}
+    assert VtzCodec.from_dict(old).effort is None
+    assert "effort" not in VtzCodec().to_dict()["configuration"]
+    with pytest.raises(vtz.InvalidArgumentError, match=r"1\.\.=9"):
+        VtzCodec(effort=2.5)
+    bad = VtzCodec.from_dict({"name": "vtz", "configuration": {"effort": 0}})
+    with pytest.raises(vtz.InvalidArgumentError, match=r"effort 0 is not an integer in 1\.\.=9"):
+        v3_array(zarr.storage.MemoryStore(), terrain(np.random.default_rng(8), (20, 20), "int16"),
+                 (10, 10), bad)
 
 
 def test_zarr_metadata_names_the_codec(tmp_path):

@@ -26,6 +26,7 @@ def encode(
     nodata: Optional[float] = None,
     method: Optional[str] = None,
     threads: int = 0,
+    effort: Optional[int] = None,
 ) -> bytes: ...
 def decode(
     data: Union[bytes, bytearray, memoryview],
@@ -44,4 +45,5 @@ def write(
     method: Optional[str] = None,
     overwrite: bool = True,
     threads: int = 0,
+    effort: Optional[int] = None,
 ) -> None: ...

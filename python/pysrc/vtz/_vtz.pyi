@@ -13,6 +13,7 @@ def encode(
     nodata: Optional[float] = ...,
     method: Optional[str] = ...,
     threads: int = ...,
+    effort: Optional[int] = ...,
 ) -> bytes: ...
 def decode(
     data: bytes,
@@ -34,4 +35,5 @@ def write(
     method: Optional[str] = ...,
     force: bool = ...,
     threads: int = ...,
+    effort: Optional[int] = ...,
 ) -> None: ...

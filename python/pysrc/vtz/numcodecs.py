@@ -36,17 +36,18 @@ __all__ = ["Vtz"]
 #: The dtypes vtz holds (native byte order).
 SUPPORTED_DTYPES = ("uint8", "int16", "uint16", "int32", "float32", "float64")
 
-_CONFIG_KEYS = ("max_error", "lossless", "nodata", "method", "threads")
+_CONFIG_KEYS = ("max_error", "lossless", "nodata", "method", "threads", "effort")
 
 
 def _check_params(
-    max_error: Any, lossless: Any, nodata: Any, method: Any, threads: Any
+    max_error: Any, lossless: Any, nodata: Any, method: Any, threads: Any, effort: Any = None
 ) -> dict[str, Any]:
     """Check the codec parameters and return them as plain JSON types.
 
     Only what any valid writer produces is checked here, so that opening an array for
-    reading never fails on an encode-only detail (an unknown ``method`` name, say, is
-    left for ``vtz.encode`` to report).
+    reading never fails on an encode-only detail (an unknown ``method`` name or an
+    ``effort`` outside 1..9, say, is left for ``vtz.encode`` to report). A configuration
+    written before ``effort`` existed has none: ``None``, the library's default.
     """
     if not isinstance(lossless, (bool, np.bool_)):
         raise TypeError(f"lossless must be True or False, not {type(lossless).__name__}")
@@ -82,12 +83,29 @@ def _check_params(
     threads = int(threads)
     if threads < 0:
         raise vtz.InvalidArgumentError(f"threads {threads} is negative (0 means all cores)")
+    if effort is not None:
+        if isinstance(effort, (bool, np.bool_)) or not isinstance(effort, numbers.Integral):
+            raise vtz.InvalidArgumentError(
+                f"effort {effort!r} is not an integer in 1..=9 (None = the default, 5)"
+            )
+        effort = int(effort)
     return {
         "max_error": max_error,
         "lossless": lossless,
         "nodata": nodata,
         "method": method,
         "threads": threads,
+        "effort": effort,
+    }
+
+
+def _config(codec: Any) -> dict[str, Any]:
+    """The codec's parameters by name; ``effort`` only when set, so that a store written
+    with the default configuration reads as before ``effort`` existed (an older vtz opens it)."""
+    return {
+        k: getattr(codec, k)
+        for k in _CONFIG_KEYS
+        if k != "effort" or getattr(codec, k) is not None
     }
 
 
@@ -153,6 +171,11 @@ class Vtz(Codec):
     threads : int, optional
         Threads per chunk (0 = all cores). The bytes are the same for every value; the
         default 1 suits callers that code several chunks at once.
+    effort : int, optional
+        Encoder effort 1..9 (:func:`vtz.encode`'s): ``None`` is the library's default, 5;
+        1-2 write the residual method's fast coding (several times faster to write, faster
+        to read, a few per cent larger); 6-9 try both codings. An effort outside 1..9 is
+        reported by ``encode``, so that a store opens for reading whatever it records.
 
     Notes
     -----
@@ -171,13 +194,15 @@ class Vtz(Codec):
         nodata: float | None = None,
         method: str | None = None,
         threads: int = 1,
+        effort: int | None = None,
     ) -> None:
-        params = _check_params(max_error, lossless, nodata, method, threads)
+        params = _check_params(max_error, lossless, nodata, method, threads, effort)
         self.max_error = params["max_error"]
         self.lossless = params["lossless"]
         self.nodata = params["nodata"]
         self.method = params["method"]
         self.threads = params["threads"]
+        self.effort = params["effort"]
 
     def encode(self, buf: Any) -> bytes:
         """Encode one chunk.
@@ -209,6 +234,7 @@ class Vtz(Codec):
             nodata=self.nodata,
             method=self.method,
             threads=self.threads,
+            effort=self.effort,
         )
 
     def decode(self, buf: Any, out: Any = None) -> np.ndarray:
@@ -243,9 +269,9 @@ class Vtz(Codec):
         -------
         dict
             ``{"id": "vtz", "max_error": ..., "lossless": ..., "nodata": ..., "method": ...,
-            "threads": ...}``, all plain Python types.
+            "threads": ...}``, all plain Python types, and ``"effort"`` when it is set.
         """
-        return {"id": self.codec_id, **{k: getattr(self, k) for k in _CONFIG_KEYS}}
+        return {"id": self.codec_id, **_config(self)}
 
     @classmethod
     def from_config(cls, config: dict[str, Any]) -> Vtz:

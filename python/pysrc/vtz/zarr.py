@@ -10,10 +10,10 @@ its chunks itself, which is how a corrupt chunk gets named in the error)::
                           compressors=None, fill_value=-32768)
 
 Each chunk is a self-describing vtz stream: the configuration holds only the encode
-parameters (``max_error``, ``lossless``, ``nodata``, ``method``, ``threads``), no shape
-or dtype. Importing this module registers the codec with ``zarr.registry``; the package
-also declares it in the ``zarr.codecs`` entry point group, so stores written with it open
-without importing it first.
+parameters (``max_error``, ``lossless``, ``nodata``, ``method``, ``threads``, and
+``effort`` when it is set), no shape or dtype. Importing this module registers the codec
+with ``zarr.registry``; the package also declares it in the ``zarr.codecs`` entry point
+group, so stores written with it open without importing it first.
 
 Chunks are 2-D: a chunk shape may have leading axes of size 1 (``(1, 512, 512)`` in a
 ``(time, y, x)`` array) and a 1-D chunk of n samples is coded as 1 x n. Zarr pads the
@@ -34,7 +34,14 @@ from zarr.core.common import parse_named_configuration
 from zarr.registry import register_codec
 
 import vtz
-from vtz.numcodecs import _CONFIG_KEYS, _as_plane, _check_dtype, _check_params, _plane_shape
+from vtz.numcodecs import (
+    _CONFIG_KEYS,
+    _as_plane,
+    _check_dtype,
+    _check_params,
+    _config,
+    _plane_shape,
+)
 
 if TYPE_CHECKING:
     from typing import Self
@@ -97,6 +104,12 @@ class VtzCodec(ArrayBytesCodec, ArrayBytesCodecPartialDecodeMixin):
         ``"fis"``, ``"residual"``) or a comma list of them.
     threads : int, optional
         Threads per chunk (0 = all cores); the bytes are the same for every value.
+    effort : int, optional
+        Encoder effort 1..9 (:func:`vtz.encode`'s): ``None`` is the library's default, 5;
+        1-2 write the residual method's fast coding (several times faster to write, faster
+        to read, a few per cent larger); 6-9 try both codings. Recorded in the store's
+        metadata when set; an effort outside 1..9 is reported when a chunk is written, so
+        that reading never fails on it.
 
     Notes
     -----
@@ -114,6 +127,7 @@ class VtzCodec(ArrayBytesCodec, ArrayBytesCodecPartialDecodeMixin):
     nodata: float | int | None
     method: str | None
     threads: int
+    effort: int | None
 
     def __init__(
         self,
@@ -123,8 +137,9 @@ class VtzCodec(ArrayBytesCodec, ArrayBytesCodecPartialDecodeMixin):
         nodata: float | int | None = None,
         method: str | None = None,
         threads: int = 1,
+        effort: int | None = None,
     ) -> None:
-        params = _check_params(max_error, lossless, nodata, method, threads)
+        params = _check_params(max_error, lossless, nodata, method, threads, effort)
         for key in _CONFIG_KEYS:
             object.__setattr__(self, key, params[key])
 
@@ -158,12 +173,10 @@ class VtzCodec(ArrayBytesCodec, ArrayBytesCodecPartialDecodeMixin):
         -------
         dict
             ``{"name": "vtz", "configuration": {"max_error": ..., "lossless": ...,
-            "nodata": ..., "method": ..., "threads": ...}}`` (plain JSON types).
+            "nodata": ..., "method": ..., "threads": ...}}`` (plain JSON types), and
+            ``"effort"`` when it is set.
         """
-        return {
-            "name": CODEC_NAME,
-            "configuration": {key: getattr(self, key) for key in _CONFIG_KEYS},
-        }
+        return {"name": CODEC_NAME, "configuration": _config(self)}
 
     # -- checks against the array ----------------------------------------------------
 
@@ -246,6 +259,7 @@ class VtzCodec(ArrayBytesCodec, ArrayBytesCodecPartialDecodeMixin):
             nodata=self.nodata,
             method=self.method,
             threads=self.threads,
+            effort=self.effort,
         )
         return chunk_spec.prototype.buffer.from_bytes(data)
 
