@@ -424,11 +424,12 @@ const PROBE_SHARE: usize = 16;
 const PROBE_MIN_ROWS: usize = 24;
 const PROBE_BAND_ROWS: usize = 8;
 const PROBE_BANDS: usize = 8;
-/// The grid is tried in full when its probe is at most this factor of the residual
-/// layer's probe. The probe favours the grid (the residual layer's adaptive models learn on
-/// fewer samples): on the corpus its ratio is up to 40 % below the full files' ratio, and
-/// every cell the grid wins has a probe ratio below 0.98.
-const PROBE_GRID_MARGIN: f64 = 1.02;
+/// The grid is tried in full when its estimate is at most this factor of the residual
+/// layer's. The probe alone favours the grid (the residual layer's adaptive models learn on
+/// fewer samples: on the corpus the probe's ratio is up to 40 % below the full files'); the
+/// estimates from the probe and its first half ([`contenders`]) are closer, and every
+/// corpus cell the grid wins has an estimated ratio of at most 1.000.
+const PROBE_GRID_MARGIN: f64 = 1.03;
 /// Below this many bits per sample of the residual layer on the probe, the methods that win
 /// at low rates (sibson's sites, FIS) are tried too.
 const PROBE_LOW_RATE: f64 = 0.5;
@@ -475,10 +476,13 @@ fn sample_bands(raster: &Raster) -> Option<Raster> {
 }
 
 /// The methods of `runs` worth a full encode, from a probe: the residual layer and the grid
-/// encode a sample of rows ([`sample_bands`]). The grid stays when its probe comes within
-/// [`PROBE_GRID_MARGIN`] of the residual layer's (edges, tiny rasters, some float data);
-/// the other methods only when the residual layer's probe rate is below [`PROBE_LOW_RATE`]
-/// (a smooth raster at a loose bound, where a few sites or FIS maps can undercut it).
+/// encode a sample of rows ([`sample_bands`]) and its first half, and a line through the
+/// two sizes estimates each one's full size. The grid stays when its estimate comes within
+/// [`PROBE_GRID_MARGIN`] of the residual layer's (edges, some float data), unless the
+/// request is lossy and the residual layer's probe rate is below [`PROBE_LOW_RATE`] (the
+/// grid codes every sample, and won no corpus cell there); sibson's sites and FIS only at
+/// such a low rate (a smooth raster at a loose bound, where a few sites or FIS maps can
+/// undercut the residual layer).
 /// Haar never won a cell of the corpus table, and is not tried. Everything is tried when
 /// the request names one method's own settings, when the residual layer is not among
 /// `runs`, when the raster is too small to sample, or when the residual layer cannot meet
@@ -507,26 +511,55 @@ fn contenders(
     if n == 0 {
         return all;
     }
-    let header = Header::of(&probe)?;
-    let size = |m: &'static dyn Representation, e: Option<f64>| {
-        encode_method(m, &probe, &header, opts, e, None, &mut |_| {})
+    // The probe's first half too: a line through the two sizes gives the size at the
+    // raster's count, less skewed by the cost of adaptation than the probe's own.
+    let half = probe.crop(Window {
+        x: 0,
+        y: 0,
+        width: probe.width,
+        height: probe.height / 2,
+    });
+    let nh = half.valid_count();
+    let (header, half_header) = (Header::of(&probe)?, Header::of(&half)?);
+    let len = |r: &Raster, h: &Header, m: &'static dyn Representation, e: Option<f64>| {
+        encode_method(m, r, h, opts, e, None, &mut |_| {})
             .ok()
             .map(|c| c.enc.payload.len() as f64)
     };
-    let Some(r) = size(res, res_e) else {
+    let full = raster.valid_count() as f64;
+    // The full size from the probe's size `s` and the size of its first half.
+    let estimate = |s: f64, m: &'static dyn Representation, e: Option<f64>| {
+        let sh = len(&half, &half_header, m, e)?;
+        Some(if nh > 0 && nh < n {
+            s + (s - sh) * (full - n as f64) / (n - nh) as f64
+        } else {
+            s * full / n as f64
+        })
+    };
+    let lossy = res_e.is_some_and(|b| b > 0.0);
+    let Some(r) = len(&probe, &header, res, res_e) else {
         return all;
     };
     let rate = r * 8.0 / n as f64;
+    let grid_too = !lossy || rate >= PROBE_LOW_RATE;
     let mut keep = Vec::new();
     for &(m, e) in runs {
         let k = if is(m, Method::RESIDUAL) {
             true
         } else if is(m, Method::GRID) {
-            size(m, e).is_some_and(|g| g <= r * PROBE_GRID_MARGIN)
+            // Left out when it cannot meet the request on the probe; kept when an estimate
+            // fails.
+            grid_too
+                && len(&probe, &header, m, e).is_some_and(|g| {
+                    match (estimate(r, res, res_e), estimate(g, m, e)) {
+                        (Some(r), Some(g)) => g <= r * PROBE_GRID_MARGIN,
+                        _ => true,
+                    }
+                })
         } else if is(m, Method::HAAR) {
             false
         } else {
-            rate < PROBE_LOW_RATE
+            lossy && rate < PROBE_LOW_RATE
         };
         if k {
             keep.push((m, e));
