@@ -20,8 +20,9 @@ pub struct EncodeReport {
     /// Methods of a several-method request left out because they cannot meet it, each
     /// with the reason.
     pub skipped: Vec<(Method, String)>,
-    /// The methods encoded in full (for `best`: the shortlist its trial on sample tiles
-    /// kept; every method `best` may try on small rasters).
+    /// The methods encoded in full (for `best`: those its probe could not rule out, less
+    /// any its trial on sample tiles then dropped; every method `best` may try on tiny
+    /// rasters).
     pub encoded: Vec<Method>,
     /// What the caller should print: `best` answering a lossy request with a lossless file
     /// because no method met the bound lossily says so here, with each method's reason.
@@ -120,12 +121,18 @@ pub(crate) fn encode_parts(
     let mut encoded: Vec<Method> = Vec::new();
     let mut notes: Vec<String> = Vec::new();
     if opts.methods.is_empty() {
-        // `best`: the methods that can meet the request, shortlisted by a trial on sample
-        // tiles (large rasters only), each encoded in full; the smallest wins.
+        // `best`: the methods that can meet the request, narrowed by a probe on a sample of
+        // rows and (large rasters only) a trial on sample tiles, each encoded in full; the
+        // smallest wins.
         let runs = best_runs(raster, opts, e);
+        // The probe: the residual layer (the usual winner) and the grid on a sample of
+        // rows; only the methods it cannot rule out are tried.
+        let runs = contenders(&runs, raster, opts)?;
         // The bar's shares follow each stage's expected time (`relative_cost`): the trial
         // against at least the cheapest full encode, then the full encodes.
-        let trial = raster.len() > EXHAUSTIVE_MAX_SAMPLES && runs.len() > 1;
+        // The probe has compared the residual layer and the grid; the trial is for the
+        // methods it could not rule out beside them.
+        let trial = raster.len() > EXHAUSTIVE_MAX_SAMPLES && runs.len() > 2;
         let share = if trial {
             let tiles = (TRIAL_TILE * TRIAL_TILE * TRIAL_TILES[0] * TRIAL_TILES[1]) as f64;
             let t: f64 = runs.iter().map(|(m, _)| m.relative_cost()).sum::<f64>() * tiles;
@@ -341,26 +348,7 @@ fn shortlist(
     why: &mut Vec<(&'static str, String)>,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Vec<(&'static dyn Representation, Option<f64>)>> {
-    let (tw, th) = (TRIAL_TILE.min(raster.width), TRIAL_TILE.min(raster.height));
-    let [nx, ny] = TRIAL_TILES;
-    let mut tiles = Vec::new();
-    for j in 0..ny {
-        for i in 0..nx {
-            // Tile centres at the centres of an nx × ny partition of the raster.
-            let x = ((2 * i + 1) * raster.width / (2 * nx)).saturating_sub(tw / 2);
-            let y = ((2 * j + 1) * raster.height / (2 * ny)).saturating_sub(th / 2);
-            let w = Window {
-                x: x.min(raster.width - tw),
-                y: y.min(raster.height - th),
-                width: tw,
-                height: th,
-            };
-            let t = raster.crop(w);
-            if t.valid_count() > 0 {
-                tiles.push(t);
-            }
-        }
-    }
+    let tiles = sample_tiles(raster, TRIAL_TILE);
     if tiles.is_empty() {
         return Ok(runs.to_vec());
     }
@@ -402,6 +390,182 @@ fn shortlist(
         })
         .map(|(r, _)| *r)
         .collect())
+}
+
+/// A 4 × 3 lattice of `side`² windows spread over the raster (tile centres at the centres
+/// of a 4 × 3 partition), those with a valid sample.
+fn sample_tiles(raster: &Raster, side: usize) -> Vec<Raster> {
+    let (tw, th) = (side.min(raster.width), side.min(raster.height));
+    let [nx, ny] = TRIAL_TILES;
+    let mut tiles = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            // Tile centres at the centres of an nx × ny partition of the raster.
+            let x = ((2 * i + 1) * raster.width / (2 * nx)).saturating_sub(tw / 2);
+            let y = ((2 * j + 1) * raster.height / (2 * ny)).saturating_sub(th / 2);
+            let w = Window {
+                x: x.min(raster.width - tw),
+                y: y.min(raster.height - th),
+                width: tw,
+                height: th,
+            };
+            let t = raster.crop(w);
+            if t.valid_count() > 0 {
+                tiles.push(t);
+            }
+        }
+    }
+    tiles
+}
+
+/// The probe: about 1 / `PROBE_SHARE` of the rows (at least `PROBE_MIN_ROWS`), in bands of at
+/// least `PROBE_BAND_ROWS` rows, at most `PROBE_BANDS` of them.
+const PROBE_SHARE: usize = 16;
+const PROBE_MIN_ROWS: usize = 24;
+const PROBE_BAND_ROWS: usize = 8;
+const PROBE_BANDS: usize = 8;
+/// The grid is tried in full when its estimate is at most this factor of the residual
+/// layer's. The probe alone favours the grid (the residual layer's adaptive models learn on
+/// fewer samples: on the corpus the probe's ratio is up to 40 % below the full files'); the
+/// estimates from the probe and its first half ([`contenders`]) are closer, and every
+/// corpus cell the grid wins has an estimated ratio of at most 1.000.
+const PROBE_GRID_MARGIN: f64 = 1.03;
+/// Below this many bits per sample of the residual layer on the probe, the methods that win
+/// at low rates (sibson's sites, FIS) are tried too.
+const PROBE_LOW_RATE: f64 = 0.5;
+
+/// Rasters of fewer samples get every method in full (a few milliseconds each), as do those
+/// whose probe would hold more than a quarter of the rows.
+const PROBE_MIN_SAMPLES: usize = 128 * 128;
+
+/// Bands of whole rows spread evenly over the raster (band centres at the centres of an
+/// equal partition), stacked into one raster of about `1 / PROBE_SHARE` of the rows; `None`
+/// for a raster too small to sample ([`PROBE_MIN_SAMPLES`]).
+fn sample_bands(raster: &Raster) -> Option<Raster> {
+    let want = (raster.height / PROBE_SHARE).max(PROBE_MIN_ROWS);
+    let rows = (want / PROBE_BANDS).max(PROBE_BAND_ROWS);
+    let bands = (want / rows).clamp(1, PROBE_BANDS);
+    if raster.len() < PROBE_MIN_SAMPLES || 4 * rows * bands > raster.height {
+        return None;
+    }
+    let w = raster.width;
+    let mut data = Vec::with_capacity(rows * bands * w);
+    let mut mask = raster
+        .mask
+        .as_ref()
+        .map(|_| Vec::with_capacity(rows * bands * w));
+    for b in 0..bands {
+        let y = ((2 * b + 1) * raster.height / (2 * bands)).saturating_sub(rows / 2);
+        let y = y.min(raster.height - rows);
+        data.extend_from_slice(&raster.data[y * w..(y + rows) * w]);
+        if let (Some(m), Some(src)) = (mask.as_mut(), raster.mask.as_ref()) {
+            m.extend_from_slice(&src[y * w..(y + rows) * w]);
+        }
+    }
+    Some(Raster {
+        mapping: raster.mapping,
+        ..Raster::from_parts(
+            w,
+            rows * bands,
+            data,
+            mask,
+            raster.nodata,
+            raster.sample_type,
+        )
+    })
+}
+
+/// The methods of `runs` worth a full encode, from a probe: the residual layer and the grid
+/// encode a sample of rows ([`sample_bands`]) and its first half, and a line through the
+/// two sizes estimates each one's full size. The grid stays when its estimate comes within
+/// [`PROBE_GRID_MARGIN`] of the residual layer's (edges, some float data), unless the
+/// request is lossy and the residual layer's probe rate is below [`PROBE_LOW_RATE`] (the
+/// grid codes every sample, and won no corpus cell there); sibson's sites and FIS only at
+/// such a low rate (a smooth raster at a loose bound, where a few sites or FIS maps can
+/// undercut the residual layer).
+/// Haar never won a cell of the corpus table, and is not tried. Everything is tried when
+/// the request names one method's own settings, when the residual layer is not among
+/// `runs`, when the raster is too small to sample, or when the residual layer cannot meet
+/// the request on the probe.
+fn contenders(
+    runs: &[(&'static dyn Representation, Option<f64>)],
+    raster: &Raster,
+    opts: &EncodeOptions,
+) -> Result<Vec<(&'static dyn Representation, Option<f64>)>> {
+    let all = Ok(runs.to_vec());
+    let is = |m: &dyn Representation, k: Method| m.name() == k.name();
+    let Some(&(res, res_e)) = runs.iter().find(|(m, _)| is(*m, Method::RESIDUAL)) else {
+        return all;
+    };
+    if runs.len() < 2
+        || REGISTRY
+            .iter()
+            .any(|m| m.own_options(&opts.params).is_some())
+    {
+        return all;
+    }
+    let Some(probe) = sample_bands(raster) else {
+        return all;
+    };
+    let n = probe.valid_count();
+    if n == 0 {
+        return all;
+    }
+    // The probe's first half too: a line through the two sizes gives the size at the
+    // raster's count, less skewed by the cost of adaptation than the probe's own.
+    let half = probe.crop(Window {
+        x: 0,
+        y: 0,
+        width: probe.width,
+        height: probe.height / 2,
+    });
+    let nh = half.valid_count();
+    let (header, half_header) = (Header::of(&probe)?, Header::of(&half)?);
+    let len = |r: &Raster, h: &Header, m: &'static dyn Representation, e: Option<f64>| {
+        encode_method(m, r, h, opts, e, None, &mut |_| {})
+            .ok()
+            .map(|c| c.enc.payload.len() as f64)
+    };
+    let full = raster.valid_count() as f64;
+    // The full size from the probe's size `s` and the size of its first half.
+    let estimate = |s: f64, m: &'static dyn Representation, e: Option<f64>| {
+        let sh = len(&half, &half_header, m, e)?;
+        Some(if nh > 0 && nh < n {
+            s + (s - sh) * (full - n as f64) / (n - nh) as f64
+        } else {
+            s * full / n as f64
+        })
+    };
+    let lossy = res_e.is_some_and(|b| b > 0.0);
+    let Some(r) = len(&probe, &header, res, res_e) else {
+        return all;
+    };
+    let rate = r * 8.0 / n as f64;
+    let grid_too = !lossy || rate >= PROBE_LOW_RATE;
+    let mut keep = Vec::new();
+    for &(m, e) in runs {
+        let k = if is(m, Method::RESIDUAL) {
+            true
+        } else if is(m, Method::GRID) {
+            // Left out when it cannot meet the request on the probe; kept when an estimate
+            // fails.
+            grid_too
+                && len(&probe, &header, m, e).is_some_and(|g| {
+                    match (estimate(r, res, res_e), estimate(g, m, e)) {
+                        (Some(r), Some(g)) => g <= r * PROBE_GRID_MARGIN,
+                        _ => true,
+                    }
+                })
+        } else if is(m, Method::HAAR) {
+            false
+        } else {
+            lossy && rate < PROBE_LOW_RATE
+        };
+        if k {
+            keep.push((m, e));
+        }
+    }
+    Ok(keep)
 }
 
 /// The progress of the `i`-th of `n` encodes as its slice of the whole, so that several
