@@ -127,7 +127,14 @@ pub(crate) fn encode_parts(
         let runs = best_runs(raster, opts, e);
         // The probe: the residual layer (the usual winner) and the grid on a sample of
         // rows; only the methods it cannot rule out are tried.
-        let runs = contenders(&runs, raster, opts)?;
+        // Its share of the bar: the probe and its first half (1.5/16 of the rows) through
+        // the residual layer and the grid, against one full encode of the residual layer.
+        let cost = |k: Method| k.0.relative_cost();
+        let probe = 1.5 / PROBE_SHARE as f64 * (cost(Method::RESIDUAL) + cost(Method::GRID));
+        let ps = probe / (probe + cost(Method::RESIDUAL));
+        let runs = contenders(&runs, raster, opts, &mut |f| progress(ps * f))?;
+        let mut after = |f: f64| progress(ps + (1.0 - ps) * f);
+        let progress: &mut dyn FnMut(f64) = &mut after;
         // The bar's shares follow each stage's expected time (`relative_cost`): the trial
         // against at least the cheapest full encode, then the full encodes.
         // The probe has compared the residual layer and the grid; the trial is for the
@@ -491,25 +498,31 @@ fn contenders(
     runs: &[(&'static dyn Representation, Option<f64>)],
     raster: &Raster,
     opts: &EncodeOptions,
+    progress: &mut dyn FnMut(f64),
 ) -> Result<Vec<(&'static dyn Representation, Option<f64>)>> {
-    let all = Ok(runs.to_vec());
+    let progress = std::cell::RefCell::new(progress);
+    let done = || (progress.borrow_mut())(1.0);
+    let all = || {
+        done();
+        Ok(runs.to_vec())
+    };
     let is = |m: &dyn Representation, k: Method| m.name() == k.name();
     let Some(&(res, res_e)) = runs.iter().find(|(m, _)| is(*m, Method::RESIDUAL)) else {
-        return all;
+        return all();
     };
     if runs.len() < 2
         || REGISTRY
             .iter()
             .any(|m| m.own_options(&opts.params).is_some())
     {
-        return all;
+        return all();
     }
     let Some(probe) = sample_bands(raster) else {
-        return all;
+        return all();
     };
     let n = probe.valid_count();
     if n == 0 {
-        return all;
+        return all();
     }
     // The probe's first half too: a line through the two sizes gives the size at the
     // raster's count, less skewed by the cost of adaptation than the probe's own.
@@ -521,10 +534,15 @@ fn contenders(
     });
     let nh = half.valid_count();
     let (header, half_header) = (Header::of(&probe)?, Header::of(&half)?);
+    // Each of the (at most four) probe encodes moves the bar a quarter of its share.
+    let steps = std::cell::Cell::new(0u32);
     let len = |r: &Raster, h: &Header, m: &'static dyn Representation, e: Option<f64>| {
-        encode_method(m, r, h, opts, e, None, &mut |_| {})
+        let out = encode_method(m, r, h, opts, e, None, &mut |_| {})
             .ok()
-            .map(|c| c.enc.payload.len() as f64)
+            .map(|c| c.enc.payload.len() as f64);
+        steps.set(steps.get() + 1);
+        (progress.borrow_mut())(f64::from(steps.get().min(4)) / 4.0);
+        out
     };
     let full = raster.valid_count() as f64;
     // The full size from the probe's size `s` and the size of its first half.
@@ -538,7 +556,7 @@ fn contenders(
     };
     let lossy = res_e.is_some_and(|b| b > 0.0);
     let Some(r) = len(&probe, &header, res, res_e) else {
-        return all;
+        return all();
     };
     let rate = r * 8.0 / n as f64;
     let grid_too = !lossy || rate >= PROBE_LOW_RATE;
@@ -565,6 +583,7 @@ fn contenders(
             keep.push((m, e));
         }
     }
+    done();
     Ok(keep)
 }
 
