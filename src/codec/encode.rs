@@ -126,8 +126,7 @@ pub(crate) fn encode_parts(
         // smallest wins.
         let runs = best_runs(raster, opts, e);
         // The probe: the residual layer (the usual winner) and the grid on a sample of
-        // rows; only the methods it cannot rule out are tried.
-        // Its share of the bar: the probe and its first half (1.5/16 of the rows) through
+        // rows; only the methods it cannot rule out are tried. Its share of the bar: the probe and its first half (1.5/16 of the rows) through
         // the residual layer and the grid, against one full encode of the residual layer.
         let cost = |k: Method| k.0.relative_cost();
         let probe = 1.5 / PROBE_SHARE as f64 * (cost(Method::RESIDUAL) + cost(Method::GRID));
