@@ -52,7 +52,25 @@ pub(crate) fn check_output(
     }
 }
 
-/// Decode an opened file with options into a raster.
+/// The window a decode of a `w × h` raster asks for (all of it without one), checked to lie
+/// inside the raster.
+pub(crate) fn window(opts: &DecodeOptions, w: usize, h: usize) -> Result<Window> {
+    let win = opts.window.unwrap_or(Window::full(w, h));
+    if win.width == 0
+        || win.height == 0
+        || win.x.checked_add(win.width).is_none_or(|e| e > w)
+        || win.y.checked_add(win.height).is_none_or(|e| e > h)
+    {
+        return Err(Error::invalid(format!(
+            "window {},{},{},{} is not inside the {w}x{h} raster",
+            win.x, win.y, win.width, win.height
+        )));
+    }
+    Ok(win)
+}
+
+/// Decode one container (an untiled file, or one tile's block) with options into a raster:
+/// the window of it that `opts` asks for, on `opts.threads` threads.
 pub(crate) fn decode_reader<R: Read + Seek>(
     rd: &mut ContainerReader<R>,
     opts: &DecodeOptions,
@@ -74,17 +92,7 @@ pub(crate) fn decode_reader<R: Read + Seek>(
         .ok_or_else(|| Error::invalid(format!("the file has no section {idx}")))?
         .clone();
     let (w, h) = (header.width as usize, header.height as usize);
-    let win = opts.window.unwrap_or(Window::full(w, h));
-    if win.width == 0
-        || win.height == 0
-        || win.x.checked_add(win.width).is_none_or(|e| e > w)
-        || win.y.checked_add(win.height).is_none_or(|e| e > h)
-    {
-        return Err(Error::invalid(format!(
-            "window {},{},{},{} is not inside the {w}x{h} raster",
-            win.x, win.y, win.width, win.height
-        )));
-    }
+    let win = window(opts, w, h)?;
     if !entry.kind.may_be_primary() && methods::by_section(entry.kind).is_none() {
         let methods: Vec<String> = rd
             .entries()

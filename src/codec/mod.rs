@@ -351,10 +351,21 @@ pub struct Decoder<R> {
     skipped: Vec<String>,
 }
 
-/// An opened file: untiled (version 1) or tiled (version 2).
-enum Opened<R> {
+/// An opened file: untiled (version 1) or tiled (version 2). Decodes treat an untiled file
+/// as the one-tile case of a tiled one (`tiles::decode_bands`).
+pub(crate) enum Opened<R> {
     Untiled(ContainerReader<R>),
     Tiled(TiledReader<R>),
+}
+
+impl<R: Read + Seek> Opened<R> {
+    /// The limits the file was opened with.
+    fn limits(&self) -> &Limits {
+        match self {
+            Opened::Untiled(r) => r.limits(),
+            Opened::Tiled(r) => r.limits(),
+        }
+    }
 }
 
 impl<R: Read + Seek> Decoder<R> {
@@ -537,14 +548,8 @@ impl<R: Read + Seek> Decoder<R> {
     /// decreasing (it may be called from several threads).
     pub fn decode_progress(&mut self, progress: &(dyn Fn(f64) + Sync)) -> Result<Raster> {
         progress(0.0);
-        let r = match &mut self.rd {
-            Opened::Untiled(rd) => decode::decode_reader(rd, &self.opts, progress)?,
-            Opened::Tiled(rd) => {
-                let (r, skipped) = tiles::decode_tiled(rd, &self.opts, progress)?;
-                self.skipped = skipped;
-                r
-            }
-        };
+        let (r, skipped) = tiles::decode_all(&mut self.rd, &self.opts, progress)?;
+        self.skipped = skipped;
         let r = self.resurface(r)?;
         progress(1.0);
         Ok(r)
@@ -569,14 +574,12 @@ impl<R: Read + Seek> Decoder<R> {
             ));
         }
         progress(0.0);
-        match &mut self.rd {
-            Opened::Untiled(rd) => {
-                let r = decode::decode_reader(rd, &self.opts, progress)?;
-                sink(self.resurface(r)?)?
-            }
-            Opened::Tiled(rd) => {
-                self.skipped = tiles::decode_bands(rd, &self.opts, sink, progress)?;
-            }
+        if self.opts.surface != Surface::Sibson {
+            // Another surface is evaluated on the whole grid of an untiled sites file.
+            let r = self.decode_progress(progress)?;
+            sink(r)?;
+        } else {
+            self.skipped = tiles::decode_bands(&mut self.rd, &self.opts, sink, progress)?;
         }
         progress(1.0);
         Ok(())

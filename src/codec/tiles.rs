@@ -2,6 +2,7 @@
 //! are written in tile order as they finish, and decodes that read only the tiles a window
 //! touches, band of tiles by band of tiles.
 
+use super::Opened;
 use super::decode::{self, check_output};
 use super::encode::{EncodeReport, encode_parts};
 use super::options::{DecodeOptions, EncodeOptions, SectionChoice};
@@ -267,10 +268,38 @@ pub(crate) fn open<R: Read + Seek>(
     TiledReader::new(inner, limits, decode::kind_names)
 }
 
-/// Decode a window of a tiled file band by band: for each row of tiles the window
-/// touches, its tiles are read, decoded on all cores and handed to `sink` as one band of
-/// the window's width. Gives back the tiles skipped as corrupt (`opts.skip_corrupt`).
+/// Decode a window (or all) of a file band by band, top to bottom, each band handed to
+/// `sink`: the one decode path. An untiled file is the one-tile case: its one tile is the
+/// raster, decoded (the window of it, on every thread) as one band with nothing to blend. A
+/// tiled file's tiles go through [`decode_tiles`]. Gives back the tiles skipped as corrupt
+/// (`opts.skip_corrupt`).
 pub(crate) fn decode_bands<R: Read + Seek>(
+    rd: &mut Opened<R>,
+    opts: &DecodeOptions,
+    sink: &mut dyn FnMut(Raster) -> Result<()>,
+    progress: &(dyn Fn(f64) + Sync),
+) -> Result<Vec<String>> {
+    match rd {
+        Opened::Untiled(c) => {
+            sink(decode::decode_reader(c, opts, progress)?)?;
+            Ok(Vec::new())
+        }
+        Opened::Tiled(t) => decode_tiles(t, opts, sink, progress),
+    }
+}
+
+/// A decoded tile: the part of its coded samples inside the window (raster coordinates),
+/// its decode, and its column weights over that part.
+struct Decoded {
+    sub: Window,
+    raster: Result<Raster>,
+    wx: Vec<u64>,
+}
+
+/// Decode a window of a tiled file band by band: a few rows of tiles at a time are read
+/// (one reader) and decoded (every thread), and each band of the window is blended from
+/// them, its rows side by side.
+fn decode_tiles<R: Read + Seek>(
     rd: &mut TiledReader<R>,
     opts: &DecodeOptions,
     sink: &mut dyn FnMut(Raster) -> Result<()>,
@@ -289,17 +318,7 @@ pub(crate) fn decode_bands<R: Read + Seek>(
     let header = rd.header().clone();
     let grid = rd.grid();
     let (w, h) = (header.width as usize, header.height as usize);
-    let win = opts.window.unwrap_or(Window::full(w, h));
-    if win.width == 0
-        || win.height == 0
-        || win.x.checked_add(win.width).is_none_or(|e| e > w)
-        || win.y.checked_add(win.height).is_none_or(|e| e > h)
-    {
-        return Err(Error::invalid(format!(
-            "window {},{},{},{} is not inside the {w}x{h} raster",
-            win.x, win.y, win.width, win.height
-        )));
-    }
+    let win = decode::window(opts, w, h)?;
     let th = grid.tile_h as usize;
     check_output(
         || format!("a band of {} x {} samples", win.width, th.min(win.height)),
@@ -325,30 +344,40 @@ pub(crate) fn decode_bands<R: Read + Seek>(
     let mut skipped = Vec::new();
     let cols = grid.cols() as usize;
     let (r0, r1) = (win.y / th, (win.y + win.height - 1) / th);
-    // Decoded tiles (the part of their coded samples inside the window), kept while a band
-    // they contribute to is still to come: at most three rows of tiles.
-    let mut decoded: std::collections::BTreeMap<usize, (Window, Result<Raster>)> =
-        std::collections::BTreeMap::new();
-    let mut rows_done: std::collections::BTreeSet<usize> = std::collections::BTreeSet::new();
+    let (first_row, last_row) = (
+        touched.first().map_or(r0, |k| k / cols),
+        touched.last().map_or(r1, |k| k / cols),
+    );
+    // Rows of tiles decoded at once: enough tiles that every thread has a few (tiles of sea
+    // and of mountains differ tenfold in time, and a row of tiles may hold fewer tiles than
+    // there are threads), within about 64 M samples of decoded tiles.
+    let per_row = touched.len().div_ceil(last_row + 1 - first_row).max(1);
+    let m2 = 2 * grid.margin as usize;
+    let tile_samples = (grid.tile_w as usize + m2) * (th + m2);
+    let want = (4 * pool.current_num_threads()).div_ceil(per_row);
+    let budget = (64usize << 20) / (per_row * tile_samples).max(1);
+    let group = want.min(budget).max(1);
+    // Decoded tiles, kept while a band they contribute to is still to come.
+    let mut decoded: std::collections::BTreeMap<usize, Decoded> = std::collections::BTreeMap::new();
+    let mut next_row = first_row;
     let fill = header.nodata.unwrap_or(f64::NAN);
     for r in r0..=r1 {
-        for rr in r.saturating_sub(1)..=r + 1 {
-            if rows_done.contains(&rr) {
-                continue;
-            }
-            rows_done.insert(rr);
-            let row_tiles: Vec<usize> =
-                touched.iter().copied().filter(|k| k / cols == rr).collect();
-            if row_tiles.is_empty() {
-                continue;
-            }
+        // Band r blends tiles of rows r − 1 ..= r + 1.
+        while next_row <= (r + 1).min(last_row) {
+            let rows = next_row..(next_row + group).min(last_row + 1);
+            next_row = rows.end;
+            let ks: Vec<usize> = touched
+                .iter()
+                .copied()
+                .filter(|k| rows.contains(&(k / cols)))
+                .collect();
             // Reading is sequential (one reader); decoding is parallel.
-            let mut blocks = Vec::with_capacity(row_tiles.len());
-            for &k in &row_tiles {
+            let mut blocks = Vec::with_capacity(ks.len());
+            for &k in &ks {
                 blocks.push((k, rd.tile_block(k)));
             }
             let opener = rd.opener();
-            let out: Vec<(usize, Window, Result<Raster>)> = pool.install(|| {
+            let out: Vec<(usize, Decoded)> = pool.install(|| {
                 use rayon::prelude::*;
                 blocks
                     .into_par_iter()
@@ -365,7 +394,7 @@ pub(crate) fn decode_bands<R: Read + Seek>(
                             width: x1 - x0,
                             height: y1 - y0,
                         };
-                        let res = block.and_then(|b| {
+                        let raster = block.and_then(|b| {
                             let mut trd = opener.open(k, b)?;
                             let o = DecodeOptions {
                                 window: Some(Window {
@@ -382,14 +411,17 @@ pub(crate) fn decode_bands<R: Read + Seek>(
                             })
                             .map_err(|e| e.context(tile_name(&grid, k)))
                         });
+                        let wx = (sub.x..sub.x + sub.width)
+                            .map(|x| grid.weight_x(k, x))
+                            .collect();
                         let n = done.fetch_add(1, Ordering::Relaxed) + 1;
                         progress(n as f64 / total as f64);
-                        (k, sub, res)
+                        (k, Decoded { sub, raster, wx })
                     })
                     .collect()
             });
-            for (k, sub, res) in out {
-                let res = match res {
+            for (k, d) in out {
+                let raster = match d.raster {
                     Err(e) if opts.skip_corrupt && matches!(e, Error::Corrupt { .. }) => {
                         skipped.push(e.to_string());
                         Err(e)
@@ -397,101 +429,159 @@ pub(crate) fn decode_bands<R: Read + Seek>(
                     Err(e) => return Err(e),
                     ok => ok,
                 };
-                decoded.insert(k, (sub, res));
+                decoded.insert(k, Decoded { raster, ..d });
             }
         }
-        // Band r: the window's rows in core row r, each sample the weighted blend of the
-        // tiles that code it (in tile order, so the sums are the same on every run), handed
-        // out SUB_BAND rows at a time to keep the blend's buffers small.
+        // Band r: the window's rows in core row r, handed out SUB_BAND rows at a time to
+        // keep the buffers small.
         let band_y0 = (r * th).max(win.y);
         let band_y1 = ((r + 1) * th).min(win.y + win.height);
         for sy0 in (band_y0..band_y1).step_by(SUB_BAND) {
             let sy1 = (sy0 + SUB_BAND).min(band_y1);
-            let bh = sy1 - sy0;
-            let n = win.width * bh;
-            let mut acc = vec![0.0f64; n];
-            let mut wsum = vec![0u64; n];
-            let mut lo = vec![f64::INFINITY; n];
-            let mut hi = vec![f64::NEG_INFINITY; n];
-            for (&k, (sub, res)) in &decoded {
-                let Ok(tr) = res else { continue };
-                let ys = sy0.max(sub.y)..sy1.min(sub.y + sub.height);
-                if ys.is_empty() {
-                    continue;
-                }
-                let wx: Vec<u64> = (sub.x..sub.x + sub.width)
-                    .map(|x| grid.weight_x(k, x))
-                    .collect();
-                for y in ys {
-                    let wy = grid.weight_y(k, y);
-                    let trow = (y - sub.y) * sub.width;
-                    let orow = (y - sy0) * win.width + (sub.x - win.x);
-                    for (i, &w) in wx.iter().enumerate() {
-                        let ww = w * wy;
-                        let t = trow + i;
-                        if ww == 0 || !tr.is_valid(t) {
-                            continue;
-                        }
-                        let o = orow + i;
-                        let v = tr.data[t];
-                        acc[o] += ww as f64 * v;
-                        wsum[o] += ww;
-                        lo[o] = lo[o].min(v);
-                        hi[o] = hi[o].max(v);
-                    }
-                }
-            }
-            let mut data = vec![fill; n];
-            let mut mask = vec![false; n];
-            for o in 0..n {
-                if wsum[o] > 0 {
-                    let v = crate::quant::finish(
-                        acc[o] / wsum[o] as f64,
-                        header.sample_type,
-                        header.mapping,
-                    );
-                    data[o] = v.clamp(lo[o], hi[o]);
-                    mask[o] = true;
-                }
-            }
-            drop((acc, wsum, lo, hi));
-            let any_invalid = mask.contains(&false);
-            let mut band = Raster {
-                width: win.width,
-                height: bh,
-                data,
-                mask: any_invalid.then_some(mask),
-                nodata: header.nodata,
-                sample_type: header.sample_type,
-                mapping: header.mapping,
-                georef: header.georef.as_ref().map(|g| g.window(win.x, sy0)),
-                gdal_metadata: gdal.clone(),
-            };
-            band.normalize_mask();
+            let mut band = blend(&grid, &decoded, win, (sy0, sy1), fill, &header, &pool);
+            band.georef = header.georef.as_ref().map(|g| g.window(win.x, sy0));
+            band.gdal_metadata = gdal.clone();
             sink(band)?;
             // Tiles that code no later row are done with.
-            decoded.retain(|_, (sub, _)| sub.y + sub.height > sy1);
+            decoded.retain(|_, d| d.sub.y + d.sub.height > sy1);
         }
     }
     Ok(skipped)
 }
 
-/// Decode a window (or all) of a tiled file into memory; with `opts.scale`, the decoded
-/// samples interpolated as every method's are (`codec::resample`: continuous across tile
-/// borders by construction).
-pub(crate) fn decode_tiled<R: Read + Seek>(
-    rd: &mut TiledReader<R>,
+/// Rows `sy0..sy1` of the window, each sample the weighted blend of the tiles that code it
+/// (spec/FORMAT.md, "Blending"), rows side by side. A sample one tile alone codes (with a
+/// weight above 0, valid) is that tile's value as it is: the blend of one value, `finish(w·v / w)`
+/// clamped to `v ..= v`, is `v`. Samples several tiles code are blended in tile order, so
+/// the sums are the same on every run and thread count.
+fn blend(
+    grid: &TileGrid,
+    decoded: &std::collections::BTreeMap<usize, Decoded>,
+    win: Window,
+    (sy0, sy1): (usize, usize),
+    fill: f64,
+    header: &Header,
+    pool: &rayon::ThreadPool,
+) -> Raster {
+    use rayon::prelude::*;
+    let bh = sy1 - sy0;
+    let n = win.width * bh;
+    // The tiles with a decode that code some row of the band, in tile order.
+    let tiles: Vec<(usize, &Decoded, &Raster)> = decoded
+        .iter()
+        .filter_map(|(&k, d)| d.raster.as_ref().ok().map(|r| (k, d, r)))
+        .filter(|(_, d, _)| d.sub.y < sy1 && d.sub.y + d.sub.height > sy0)
+        .collect();
+    let mut data = vec![fill; n];
+    let mut mask = vec![false; n];
+    pool.install(|| {
+        data.par_chunks_mut(win.width)
+            .zip(mask.par_chunks_mut(win.width))
+            .enumerate()
+            .for_each_init(
+                || vec![0u8; win.width],
+                |cover, (dy, (drow, mrow))| {
+                    let y = sy0 + dy;
+                    // (tile, its row's weight, its row's first sample, its first column in
+                    // the window) of the tiles that code row y.
+                    let here: Vec<(&Decoded, &Raster, u64, usize, usize)> = tiles
+                        .iter()
+                        .filter(|(_, d, _)| (d.sub.y..d.sub.y + d.sub.height).contains(&y))
+                        .map(|&(k, d, r)| {
+                            (
+                                d,
+                                r,
+                                grid.weight_y(k, y),
+                                (y - d.sub.y) * d.sub.width,
+                                d.sub.x - win.x,
+                            )
+                        })
+                        .filter(|h| h.2 > 0)
+                        .collect();
+                    cover.fill(0);
+                    for &(d, r, _, t0, o0) in &here {
+                        for (i, &wx) in d.wx.iter().enumerate() {
+                            if wx > 0 && r.is_valid(t0 + i) {
+                                cover[o0 + i] += 1;
+                            }
+                        }
+                    }
+                    for &(d, r, _, t0, o0) in &here {
+                        for (i, &wx) in d.wx.iter().enumerate() {
+                            if wx > 0 && cover[o0 + i] == 1 && r.is_valid(t0 + i) {
+                                drow[o0 + i] = r.data[t0 + i];
+                                mrow[o0 + i] = true;
+                            }
+                        }
+                    }
+                    for (o, &c) in cover.iter().enumerate() {
+                        if c < 2 {
+                            continue;
+                        }
+                        let x = win.x + o;
+                        let (mut acc, mut wsum) = (0.0f64, 0u64);
+                        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                        for &(d, r, wy, t0, _) in &here {
+                            if !(d.sub.x..d.sub.x + d.sub.width).contains(&x) {
+                                continue;
+                            }
+                            let i = x - d.sub.x;
+                            let ww = d.wx[i] * wy;
+                            if ww == 0 || !r.is_valid(t0 + i) {
+                                continue;
+                            }
+                            let v = r.data[t0 + i];
+                            acc += ww as f64 * v;
+                            wsum += ww;
+                            lo = lo.min(v);
+                            hi = hi.max(v);
+                        }
+                        let v = crate::quant::finish(
+                            acc / wsum as f64,
+                            header.sample_type,
+                            header.mapping,
+                        );
+                        drow[o] = v.clamp(lo, hi);
+                        mrow[o] = true;
+                    }
+                },
+            );
+    });
+    let any_invalid = mask.contains(&false);
+    Raster {
+        width: win.width,
+        height: bh,
+        data,
+        mask: any_invalid.then_some(mask),
+        nodata: header.nodata,
+        sample_type: header.sample_type,
+        mapping: header.mapping,
+        georef: None,
+        gdal_metadata: None,
+    }
+}
+
+/// Decode a window (or all) of a file into memory. An untiled file: its one tile's decode,
+/// with `opts.scale` the method's own surface where it has one; a tiled file: its bands
+/// joined, with `opts.scale` the decoded samples interpolated as every method's are
+/// (`codec::resample`: continuous across tile borders by construction).
+pub(crate) fn decode_all<R: Read + Seek>(
+    rd: &mut Opened<R>,
     opts: &DecodeOptions,
     progress: &(dyn Fn(f64) + Sync),
 ) -> Result<(Raster, Vec<String>)> {
-    let header = rd.header().clone();
+    let header = match rd {
+        Opened::Untiled(c) => return Ok((decode::decode_reader(c, opts, progress)?, Vec::new())),
+        Opened::Tiled(t) => t.header().clone(),
+    };
     let (w, h) = (header.width as usize, header.height as usize);
-    let scale = super::decode::check_scale(opts, w, h, rd.limits())?;
-    let win = opts.window.unwrap_or(Window::full(w, h));
+    let limits = *rd.limits();
+    let scale = super::decode::check_scale(opts, w, h, &limits)?;
+    let win = decode::window(opts, w, h)?;
     check_output(
         || format!("a decode of {} x {} samples", win.width, win.height),
         (win.width as u64).checked_mul(win.height as u64),
-        rd.limits(),
+        &limits,
     )?;
     let mut parts: Vec<Raster> = Vec::new();
     let o = DecodeOptions {
@@ -509,7 +599,10 @@ pub(crate) fn decode_tiled<R: Read + Seek>(
     )?;
     let mut it = parts.into_iter();
     let mut r = it.next().ok_or_else(|| Error::invalid("empty window"))?;
-    for b in it {
+    let rest: Vec<Raster> = it.collect();
+    let rows: usize = r.height + rest.iter().map(|b| b.height).sum::<usize>();
+    r.data.reserve(win.width * rows - r.data.len());
+    for b in rest {
         r.height += b.height;
         let had = r.mask.is_some() || b.mask.is_some();
         if had {
