@@ -1,12 +1,12 @@
 //! The flat-regions section: which samples lie in a flat region (a context-coded bitmap,
 //! `bitmap`) and each region's value; a decoder labels the regions itself
-//! (4-connected, in raster order: `model::flat::label`) and gives every sample of region k
+//! (4-connected, in raster order: `model::flat::label_runs`) and gives every sample of region k
 //! value k.
 
 use super::bitmap;
 use super::bytes::{ByteReader, PutLe};
 use crate::error::Result;
-use crate::model::flat::{BLOCK, label};
+use crate::model::flat::{BLOCK, label_runs};
 
 /// Coding 0: the bitmap of valid samples, range coded with neighbour contexts.
 const CODING_CONTEXT: u8 = 0;
@@ -68,12 +68,10 @@ fn header(
     coding: u8,
     stream: impl FnOnce(&mut Vec<u8>),
 ) -> Vec<u8> {
-    let (lab, count) = label(flat, w);
+    let (runs, count) = label_runs(flat, w);
     let mut region_values = vec![0f64; count as usize];
-    for (i, &l) in lab.iter().enumerate() {
-        if l != 0 {
-            region_values[l as usize - 1] = values[i];
-        }
+    for &(start, _, l) in &runs {
+        region_values[l as usize] = values[start as usize];
     }
     let mut out = Vec::new();
     out.put_u8(coding);
@@ -212,25 +210,11 @@ pub fn decode(payload: &[u8], w: usize, n: usize, mask: Option<&[bool]>) -> Resu
             "the bitmap has {seen} flat samples, the header says {flat_count}"
         )));
     }
-    let (lab, found) = label(&flat, w);
+    let (runs, found) = label_runs(&flat, w);
     if found as usize != count {
         return Err(r.corrupt(format!(
             "the bitmap makes {found} regions, the header says {count}"
         )));
-    }
-    let mut runs = Vec::new();
-    for (y, row) in lab.chunks(w.max(1)).enumerate() {
-        let mut x = 0;
-        while x < row.len() {
-            let l = row[x];
-            let from = x;
-            while x < row.len() && row[x] == l {
-                x += 1;
-            }
-            if l != 0 {
-                runs.push(((y * w + from) as u64, (x - from) as u32, l - 1));
-            }
-        }
     }
     Ok(Flat {
         runs,

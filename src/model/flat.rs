@@ -64,6 +64,86 @@ pub(crate) fn label(flat: &[bool], w: usize) -> (Vec<u32>, u32) {
     (lab, count)
 }
 
+/// [`label`] as runs: every maximal run of flat samples along a row as (first sample index,
+/// length, label − 1), in raster order, and the component count. The same components and
+/// numbers as [`label`] (a run lies in one 4-connected component; runs of neighbouring rows
+/// that share a column are joined), found by union–find over the runs instead of a flood
+/// fill over the samples: a sea of millions of samples is a few thousand runs.
+pub(crate) fn label_runs(flat: &[bool], w: usize) -> (Vec<(u64, u32, u32)>, u32) {
+    let w = w.max(1);
+    // (first sample index, length) per run, rows in order; union–find parents.
+    let mut runs: Vec<(u64, u32)> = Vec::new();
+    let mut parent: Vec<u32> = Vec::new();
+    fn root(parent: &mut [u32], mut a: u32) -> u32 {
+        while parent[a as usize] != a {
+            let up = parent[parent[a as usize] as usize];
+            parent[a as usize] = up;
+            a = up;
+        }
+        a
+    }
+    let mut prev = 0..0;
+    for (y, row) in flat.chunks(w).enumerate() {
+        let first = runs.len();
+        let mut x = 0;
+        while x < row.len() {
+            if !row[x] {
+                x += 1;
+                continue;
+            }
+            let from = x;
+            while x < row.len() && row[x] {
+                x += 1;
+            }
+            let id = runs.len() as u32;
+            runs.push(((y * w + from) as u64, (x - from) as u32));
+            parent.push(id);
+        }
+        // Join each run of this row with the runs of the row above that share a column.
+        let mut k = prev.start;
+        for j in first..runs.len() {
+            let (a0, a1) = (
+                runs[j].0 as usize % w,
+                runs[j].0 as usize % w + runs[j].1 as usize,
+            );
+            while k < prev.end {
+                let b0 = runs[k].0 as usize % w;
+                let b1 = b0 + runs[k].1 as usize;
+                if b1 <= a0 {
+                    k += 1;
+                    continue;
+                }
+                if b0 >= a1 {
+                    break;
+                }
+                let (ra, rb) = (root(&mut parent, j as u32), root(&mut parent, k as u32));
+                // The smaller run index is the root, so a component's root is its first run.
+                if ra != rb {
+                    parent[ra.max(rb) as usize] = ra.min(rb);
+                }
+                if b1 > a1 {
+                    break;
+                }
+                k += 1;
+            }
+        }
+        prev = first..runs.len();
+    }
+    // Number the components in the order of their first runs (their first samples).
+    let mut number = vec![0u32; runs.len()];
+    let mut count = 0u32;
+    let mut out = Vec::with_capacity(runs.len());
+    for (j, &(start, len)) in runs.iter().enumerate() {
+        let r = root(&mut parent, j as u32) as usize;
+        if number[r] == 0 {
+            count += 1;
+            number[r] = count;
+        }
+        out.push((start, len, number[r] - 1));
+    }
+    (out, count)
+}
+
 /// The flat regions of `r`: per sample its region's value, NaN outside every region; `None`
 /// when there is none. A region is the union of the aligned [`BLOCK`]² blocks (clipped at
 /// the raster's edges) whose samples are all valid and lie in one 4-connected component of
@@ -189,6 +269,53 @@ pub(crate) fn find(r: &Raster) -> Option<Vec<f64>> {
 
 #[cfg(test)]
 mod tests {
+    /// `label_runs` against the flood fill of `label`, run by run.
+    fn runs_of_label(flat: &[bool], w: usize) -> (Vec<(u64, u32, u32)>, u32) {
+        let (lab, count) = label(flat, w);
+        let mut runs = Vec::new();
+        for (y, row) in lab.chunks(w).enumerate() {
+            let mut x = 0;
+            while x < row.len() {
+                let (l, from) = (row[x], x);
+                while x < row.len() && row[x] == l {
+                    x += 1;
+                }
+                if l != 0 {
+                    runs.push(((y * w + from) as u64, (x - from) as u32, l - 1));
+                }
+            }
+        }
+        (runs, count)
+    }
+
+    #[test]
+    fn run_labels_are_the_flood_fills() {
+        let mut s = 99u64;
+        let mut next = move || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            s >> 33
+        };
+        for case in 0..300 {
+            let (w, h) = (1 + next() as usize % 40, 1 + next() as usize % 30);
+            let density = next() % 100;
+            let mut flat: Vec<bool> = (0..w * h).map(|_| next() % 100 < density).collect();
+            if case % 3 == 0 {
+                // Combs and U shapes: components that join only rows below their starts.
+                for (i, f) in flat.iter_mut().enumerate() {
+                    let (x, y) = (i % w, i / w);
+                    *f = (x % 4 == 0 && y + 1 < h) || y + 1 == h || (x % 4 == 2 && y == 0);
+                }
+            }
+            assert_eq!(
+                label_runs(&flat, w),
+                runs_of_label(&flat, w),
+                "case {case}: {w}x{h}"
+            );
+        }
+    }
+
     use super::*;
     use crate::model::SampleType;
     use crate::testutil::{Rng, for_each_corpus, load_raw};
