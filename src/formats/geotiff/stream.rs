@@ -601,6 +601,115 @@ pub struct StreamWriter<W: Write + Seek> {
     failed: bool,
 }
 
+/// What the checks of [`StreamWriter`] need of one converted row: where its first invalid
+/// sample and its first valid sample holding the fill value are (columns), and its first
+/// error (column, error); the row's conversion stops at that error.
+#[derive(Default)]
+struct RowCheck {
+    first_invalid: Option<usize>,
+    first_fill: Option<usize>,
+    error: Option<(usize, Error)>,
+}
+
+/// The conversion of rows into the output type (native byte order).
+#[derive(Clone, Copy)]
+struct RowConv {
+    st: SampleType,
+    nodata: Option<f64>,
+    int_fill: f64,
+    /// Whether a valid sample holding the fill value matters (integers without nodata).
+    track_fill: bool,
+}
+
+impl RowConv {
+    /// Row `y`'s `vals` (valid where `mask` says) into `out`; integer outputs rounded to the
+    /// nearest integer (out of range is an error), float32 outputs finite, invalid samples
+    /// the nodata value (integers without one: the fill; floats: NaN).
+    fn row(&self, vals: &[f64], mask: Option<&[bool]>, y: usize, out: &mut [u8]) -> RowCheck {
+        let mut c = RowCheck::default();
+        let valid = |x: usize| mask.is_none_or(|m| m[x]);
+        let w = vals.len();
+        match self.st {
+            SampleType::F32 => {
+                let fill = self.nodata.map_or(f32::NAN, |nd| nd as f32);
+                for (x, (&v, o)) in vals.iter().zip(out.chunks_exact_mut(4)).enumerate() {
+                    let s = if valid(x) {
+                        let s = v as f32;
+                        if !s.is_finite() {
+                            let msg = format!(
+                                "sample {} (row {y}, col {x}) = {v} does not fit in float32",
+                                y * w + x
+                            );
+                            c.error = Some((x, Error::invalid(msg)));
+                            return c;
+                        }
+                        s
+                    } else {
+                        c.first_invalid = c.first_invalid.or(Some(x));
+                        fill
+                    };
+                    o.copy_from_slice(&s.to_ne_bytes());
+                }
+            }
+            SampleType::F64 => {
+                let fill = self.nodata.unwrap_or(f64::NAN);
+                for (x, (&v, o)) in vals.iter().zip(out.chunks_exact_mut(8)).enumerate() {
+                    let s = if valid(x) {
+                        v
+                    } else {
+                        c.first_invalid = c.first_invalid.or(Some(x));
+                        fill
+                    };
+                    o.copy_from_slice(&s.to_ne_bytes());
+                }
+            }
+            st => {
+                let (lo, hi) = st.int_range().expect("an integer type");
+                let bps = (st.bits() / 8) as usize;
+                for (x, (&v, o)) in vals.iter().zip(out.chunks_exact_mut(bps)).enumerate() {
+                    let code = if valid(x) {
+                        let code = v.round();
+                        if !(code >= lo && code <= hi) {
+                            let msg = format!(
+                                "sample {v} at row {y}, col {x} does not fit in {} ({lo}..={hi})",
+                                st.name()
+                            );
+                            c.error = Some((x, Error::invalid(msg)));
+                            return c;
+                        }
+                        if self.track_fill && code == self.int_fill && c.first_fill.is_none() {
+                            c.first_fill = Some(x);
+                        }
+                        code
+                    } else {
+                        c.first_invalid = c.first_invalid.or(Some(x));
+                        match self.nodata {
+                            Some(nd) if nd.fract() != 0.0 || !(nd >= lo && nd <= hi) => {
+                                let msg = format!(
+                                    "nodata value {nd} cannot be stored in a {} GeoTIFF",
+                                    st.name()
+                                );
+                                c.error = Some((x, Error::invalid(msg)));
+                                return c;
+                            }
+                            Some(nd) => nd,
+                            None => self.int_fill,
+                        }
+                    };
+                    let code = code as i64;
+                    match st {
+                        SampleType::U8 => o[0] = code as u8,
+                        SampleType::I16 => o.copy_from_slice(&(code as i16).to_ne_bytes()),
+                        SampleType::U16 => o.copy_from_slice(&(code as u16).to_ne_bytes()),
+                        _ => o.copy_from_slice(&(code as i32).to_ne_bytes()),
+                    }
+                }
+            }
+        }
+        c
+    }
+}
+
 impl<W: Write + Seek> StreamWriter<W> {
     /// Start a `width × height` GeoTIFF on `out` (at its current position). `meta` gives the
     /// sample type, value mapping, nodata, georef (of the whole raster, top-left) and
@@ -723,16 +832,40 @@ impl<W: Write + Seek> StreamWriter<W> {
     }
 
     /// The rows of a checked band into the tile row buffer, tiles out as tile rows fill.
+    /// Rows are converted side by side (on the caller's rayon pool); what the checks need of
+    /// each row is then taken in row order, so the first problem is the one a sample-by-sample
+    /// pass would meet, with the same message.
     fn push_rows(&mut self, band: &Raster) -> Result<()> {
+        use rayon::prelude::*;
         let w = self.width;
-        for r in 0..band.height {
-            let y = self.rows_done;
-            for x in 0..w {
-                let i = r * w + x;
-                self.push_sample(band.is_valid(i), band.data[i], y, x)?;
+        let bps = (self.st.bits() / 8) as usize;
+        let conv = RowConv {
+            st: self.st,
+            nodata: self.nodata,
+            int_fill: self.int_fill,
+            track_fill: self.nodata.is_none() && self.st.is_integer(),
+        };
+        let mut r0 = 0;
+        while r0 < band.height {
+            let n = (TILE - self.rows_buffered).min(band.height - r0);
+            let at = self.rows.len();
+            self.rows.resize(at + n * w * bps, 0);
+            let y0 = self.rows_done;
+            let checks: Vec<RowCheck> = self.rows[at..]
+                .par_chunks_mut(w * bps)
+                .enumerate()
+                .map(|(k, out)| {
+                    let i = (r0 + k) * w;
+                    let mask = band.mask.as_deref().map(|m| &m[i..i + w]);
+                    conv.row(&band.data[i..i + w], mask, y0 + k, out)
+                })
+                .collect();
+            for (k, c) in checks.into_iter().enumerate() {
+                self.take_row(c, y0 + k)?;
             }
-            self.rows_done += 1;
-            self.rows_buffered += 1;
+            self.rows_done += n;
+            self.rows_buffered += n;
+            r0 += n;
             if self.rows_buffered == TILE {
                 self.flush_tile_row()?;
             }
@@ -740,79 +873,41 @@ impl<W: Write + Seek> StreamWriter<W> {
         Ok(())
     }
 
-    /// One sample of row `y`, column `x`, converted into the tile row buffer.
-    fn push_sample(&mut self, valid: bool, v: f64, y: usize, x: usize) -> Result<()> {
-        let st = self.st;
-        if !valid {
-            self.has_invalid = true;
+    /// The checks of row `y`, in order: its own first error, or the error of a valid
+    /// sample holding the fill value in a raster with invalid samples and no nodata value,
+    /// whichever a sample-by-sample pass meets first.
+    fn take_row(&mut self, c: RowCheck, y: usize) -> Result<()> {
+        // Where, within the row, "has invalid samples" and "a valid sample holds the fill"
+        // both hold (0: from the row's start).
+        let inv = if self.has_invalid {
+            Some(0)
+        } else {
+            c.first_invalid
+        };
+        let fill = if self.valid_at_fill.is_some() {
+            Some(0)
+        } else {
+            c.first_fill
+        };
+        let both = inv.zip(fill).map(|(a, b)| a.max(b));
+        if let Some((q, e)) = c.error {
+            // A sample's own error comes before the check after it.
+            if both.is_none_or(|p| q <= p) {
+                return Err(e);
+            }
         }
-        match st {
-            SampleType::F32 => {
-                let s = if valid {
-                    let s = v as f32;
-                    if !s.is_finite() {
-                        return Err(Error::invalid(format!(
-                            "sample {} (row {y}, col {x}) = {v} does not fit in float32",
-                            y * self.width + x
-                        )));
-                    }
-                    s
-                } else {
-                    self.nodata.map_or(f32::NAN, |nd| nd as f32)
-                };
-                self.rows.extend_from_slice(&s.to_ne_bytes());
-            }
-            SampleType::F64 => {
-                let s = if valid {
-                    v
-                } else {
-                    self.nodata.unwrap_or(f64::NAN)
-                };
-                self.rows.extend_from_slice(&s.to_ne_bytes());
-            }
-            _ => {
-                let (lo, hi) = st.int_range().expect("an integer type");
-                let c = if valid {
-                    let c = v.round();
-                    if !(c >= lo && c <= hi) {
-                        return Err(Error::invalid(format!(
-                            "sample {v} at row {y}, col {x} does not fit in {} ({lo}..={hi})",
-                            st.name()
-                        )));
-                    }
-                    if self.nodata.is_none() && c == self.int_fill && self.valid_at_fill.is_none() {
-                        self.valid_at_fill = Some((y, x));
-                    }
-                    c
-                } else {
-                    match self.nodata {
-                        Some(nd) if nd.fract() != 0.0 || !(nd >= lo && nd <= hi) => {
-                            return Err(Error::invalid(format!(
-                                "nodata value {nd} cannot be stored in a {} GeoTIFF",
-                                st.name()
-                            )));
-                        }
-                        Some(nd) => nd,
-                        None => self.int_fill,
-                    }
-                };
-                if let (true, Some((fy, fx))) = (self.has_invalid, self.valid_at_fill) {
-                    return Err(Error::invalid(format!(
-                        "raster has nodata samples but no nodata value, and the valid sample \
-                         at row {fy}, col {fx} holds {}, the value a streamed {} GeoTIFF \
-                         gives them (give the raster a nodata value)",
-                        self.int_fill,
-                        st.name()
-                    )));
-                }
-                let c = c as i64;
-                match st {
-                    SampleType::U8 => self.rows.push(c as u8),
-                    SampleType::I16 => self.rows.extend_from_slice(&(c as i16).to_ne_bytes()),
-                    SampleType::U16 => self.rows.extend_from_slice(&(c as u16).to_ne_bytes()),
-                    _ => self.rows.extend_from_slice(&(c as i32).to_ne_bytes()),
-                }
-            }
+        self.has_invalid |= c.first_invalid.is_some();
+        if self.valid_at_fill.is_none() {
+            self.valid_at_fill = c.first_fill.map(|x| (y, x));
+        }
+        if let (Some(_), Some((fy, fx))) = (both, self.valid_at_fill) {
+            return Err(Error::invalid(format!(
+                "raster has nodata samples but no nodata value, and the valid sample \
+                 at row {fy}, col {fx} holds {}, the value a streamed {} GeoTIFF \
+                 gives them (give the raster a nodata value)",
+                self.int_fill,
+                self.st.name()
+            )));
         }
         Ok(())
     }
@@ -1700,6 +1795,24 @@ mod tests {
         let e = w.write_rows(&row(vec![1.0; 4])).unwrap_err();
         assert!(e.to_string().contains("incomplete"), "{e}");
         assert!(w.finish().is_err());
+
+        // Within one band, the first problem in sample order wins: a hole, then a valid
+        // sample at the fill value, then an out-of-range one (the fill error), and the
+        // other way round (the range error), also when rows of one band convert side by
+        // side.
+        let band = |v: Vec<f64>| Raster::from_values(4, 3, v, None, SampleType::I16).unwrap();
+        let mut v = vec![1.0; 12];
+        (v[5], v[6], v[7]) = (f64::NAN, -32768.0, 40000.0);
+        let e = new().write_rows(&band(v.clone())).unwrap_err();
+        assert!(e.to_string().contains("row 1, col 2 holds -32768"), "{e}");
+        (v[6], v[7]) = (40000.0, -32768.0);
+        let e = new().write_rows(&band(v.clone())).unwrap_err();
+        assert!(e.to_string().contains("40000 at row 1, col 2"), "{e}");
+        // The fill value in one row, the hole in a later one: the error names the first.
+        let mut v = vec![1.0; 12];
+        (v[1], v[6], v[9]) = (-32768.0, -32768.0, f64::NAN);
+        let e = new().write_rows(&band(v)).unwrap_err();
+        assert!(e.to_string().contains("row 0, col 1 holds -32768"), "{e}");
 
         // A nodata value the type cannot hold, once it must be written.
         let mut meta = meta.clone();
