@@ -414,3 +414,56 @@ proptest! {
         prop_assert_eq!(x, r.valid_count() / every, "exceptions stored");
     }
 }
+
+/// A window of a fast-coded file (effort 1, which decodes only the bands the window's rows
+/// need) is the crop of the full decode, bit for bit, on one thread and two: untiled
+/// (single rows every few rows, the edges, the corners, a column) and tiled.
+#[test]
+fn fast_coded_windows_are_the_crop_of_the_full_decode() {
+    let r = read_corpus("srtm3_N22W160_kauai.hgt");
+    let (w, h) = (r.width, r.height);
+    let win = |x, y, width, height| Window {
+        x,
+        y,
+        width,
+        height,
+    };
+    let mut windows = vec![
+        win(0, 0, 1, 1),
+        win(w - 1, h - 1, 1, 1),
+        win(w - 1, 0, 1, h),
+        win(0, h - 1, w, 1),
+        win(600, 0, 1, h),
+        win(437, 433, 512, 512),
+        win(100, 870, 300, 331),
+        win(0, 0, w, h),
+    ];
+    windows.extend((0..h).step_by(23).map(|y| win(y % 900, y, 301, 1)));
+    for tile in [Some(0), Some(512)] {
+        let mut o = encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(1.0)));
+        o.effort = Some(1);
+        o.tile = tile;
+        let bytes = vtz::encode(&r, &o).unwrap();
+        let full = vtz::decode(&bytes).unwrap();
+        check(&r, &full, 1.0, "kauai at 1 m");
+        let n = if tile == Some(0) { windows.len() } else { 10 };
+        for threads in [1, 2] {
+            let mut d = vtz::Decoder::new(std::io::Cursor::new(&bytes)).unwrap();
+            d.options(decode_opts(|o| o.threads = threads));
+            for &wn in &windows[..n] {
+                let part = d.window(wn).decode().unwrap();
+                let want = crop(&full, wn);
+                let what = format!("tile {tile:?}, {threads} threads, {wn:?}");
+                assert_eq!((part.width, part.height), (wn.width, wn.height), "{what}");
+                let differ = (0..part.data.len())
+                    .filter(|&i| {
+                        part.is_valid(i) != want.is_valid(i)
+                            || (part.is_valid(i)
+                                && part.data[i].to_bits() != want.data[i].to_bits())
+                    })
+                    .count();
+                assert_eq!(differ, 0, "{what}: samples differ");
+            }
+        }
+    }
+}

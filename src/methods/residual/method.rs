@@ -3,6 +3,7 @@
 use super::{decode, describe, encode};
 use crate::container::SectionKind;
 use crate::error::Result;
+use crate::model::Window;
 use crate::methods::{
     DecodeJob, EncodeJob, Encoded, Identity, Method, Representation, StatValue, Stats,
 };
@@ -38,7 +39,12 @@ impl Representation for Residual {
         Ok((payload, bound).into())
     }
     fn decode_full(&self, job: &DecodeJob) -> Result<Vec<f64>> {
-        decode(job.payload, job.header, job.mask, job.flat)
+        let all = Window::full(job.header.width as usize, job.header.height as usize);
+        decode(job.payload, job.header, job.mask, job.flat, all)
+    }
+    /// The window alone: the fast coding decodes only the bands its rows need.
+    fn decode(&self, job: &DecodeJob) -> Result<Vec<f64>> {
+        decode(job.payload, job.header, job.mask, job.flat, job.window)
     }
     fn has_stats(&self) -> bool {
         true

@@ -21,7 +21,7 @@ use crate::container::flat::Flat;
 use crate::container::bytes::{ByteReader, PutLe};
 use crate::entropy::range::{Decoder, Encoder};
 use crate::error::{Error, Result};
-use crate::model::{Raster, SampleType};
+use crate::model::{Raster, SampleType, Window};
 use crate::quant::{Errors, finish_value};
 use rayon::prelude::*;
 use coder::{BinDecoder, BinEncoder, Models};
@@ -539,13 +539,15 @@ fn read_varint(rd: &mut ByteReader) -> Result<u64> {
     Err(rd.corrupt("an exception gap is not a varint"))
 }
 
-/// Decode a residual payload. `flat` holds the samples known by other means (flat
-/// regions).
+/// Decode the window `win` of a residual payload. `flat` holds the samples known by other
+/// means (flat regions). The whole payload is read and checked; the fast coding decodes
+/// only the bands the window's rows need, the range-coded ones (one stream) everything.
 pub(crate) fn decode(
     payload: &[u8],
     header: &Header,
     mask: Option<&[bool]>,
     flat: Option<&Flat>,
+    win: Window,
 ) -> Result<Vec<f64>> {
     let mut rd = ByteReader::new(payload, "residual section");
     let Head {
@@ -646,8 +648,10 @@ pub(crate) fn decode(
             .chunks_exact(fast::NW)
             .map(|c| c.try_into().expect("NW weights"))
             .collect();
-        fast::decode(&mut rd, &p, f.levels, f.tighten, &wts, max_bin)?
+        fast::decode(&mut rd, &p, f.levels, f.tighten, &wts, max_bin, win.y..win.y + win.height)?
     } else {
+    // Codings 0 and 1 are one range-coded stream: every sample is decoded, whatever the
+    // window.
     let stream = rd.take(rd.remaining(), "bins")?;
     let mut c = BinDecoder {
         m: Models::new(),
@@ -675,47 +679,66 @@ pub(crate) fn decode(
     st.rec
     };
     let fill = header.nodata.unwrap_or(f64::NAN);
-    let mut out = lattice_values(&rec, &kinds, fill, domain, header);
-    for (s, l, v) in flat.into_iter().flat_map(Flat::runs) {
-        out[s..s + l].fill(v);
+    let mut out = lattice_values(&rec, &kinds, fill, domain, header, win);
+    if let Some(f) = flat {
+        f.overwrite(&mut out, w, (win.x, win.y, win.width, win.height));
     }
     for (i, v) in exc {
-        out[i] = v;
+        let (x, y) = (i % w, i / w);
+        if (win.x..win.x + win.width).contains(&x) && (win.y..win.y + win.height).contains(&y) {
+            out[(y - win.y) * win.width + x - win.x] = v;
+        }
     }
     Ok(out)
 }
 
-/// The coded samples' values from their lattice indices (`kinds` empty: all coded; a
-/// skipped sample gets `fill`): `finish_value(domain.raw(k))`, without the
+/// The values of the window `win`'s coded samples from their lattice indices (`kinds`
+/// empty: all coded; a skipped sample gets `fill`): `finish_value(domain.raw(k))`, without the
 /// multiplication, division and rounding where the lattice is the integers and the sample
 /// type's codes are the values (the same result: every step is exact). The case is chosen
 /// once, so the loop over the samples holds no branch but the kinds'.
-fn lattice_values(rec: &[i64], kinds: &[u8], fill: f64, domain: Domain, header: &Header) -> Vec<f64> {
+fn lattice_values(rec: &[i64], kinds: &[u8], fill: f64, domain: Domain, header: &Header, win: Window) -> Vec<f64> {
+    let at = (header.width as usize, win);
     let ident = domain.mul == 1.0 && domain.div == 1.0 && domain.offset == 0.0;
     let int_codes = (header.mapping.scale == 1.0 && header.mapping.offset == 0.0)
         .then(|| header.sample_type.int_range())
         .flatten();
     match (ident, int_codes) {
-        (true, Some((lo, hi))) => map_values(rec, kinds, fill, |k| (k as f64).clamp(lo, hi)),
-        (true, None) => map_values(rec, kinds, fill, |k| crate::quant::finish_value(k as f64, header)),
-        _ => map_values(rec, kinds, fill, |k| finish_value(domain.raw(k), header)),
+        (true, Some((lo, hi))) => map_values(rec, kinds, fill, at, |k| (k as f64).clamp(lo, hi)),
+        (true, None) => map_values(rec, kinds, fill, at, |k| crate::quant::finish_value(k as f64, header)),
+        _ => map_values(rec, kinds, fill, at, |k| finish_value(domain.raw(k), header)),
     }
 }
 
-/// [`lattice_values`] with the value function chosen, in chunks on all threads.
-fn map_values(rec: &[i64], kinds: &[u8], fill: f64, value: impl Fn(i64) -> f64 + Sync) -> Vec<f64> {
+/// [`lattice_values`] with the value function chosen, in chunks of whole window rows
+/// (about 2^16 samples) on all threads; `w` is the raster's width.
+fn map_values(
+    rec: &[i64],
+    kinds: &[u8],
+    fill: f64,
+    (w, win): (usize, Window),
+    value: impl Fn(i64) -> f64 + Sync,
+) -> Vec<f64> {
     const CHUNK: usize = 1 << 16;
-    let mut out = vec![0f64; rec.len()];
-    out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, o)| {
-        let r = &rec[c * CHUNK..c * CHUNK + o.len()];
-        if kinds.is_empty() {
-            for (o, &k) in o.iter_mut().zip(r) {
-                *o = value(k);
-            }
-        } else {
-            let kd = &kinds[c * CHUNK..c * CHUNK + o.len()];
-            for ((o, &k), &kind) in o.iter_mut().zip(r).zip(kd) {
-                *o = if kind == SKIPPED { fill } else { value(k) };
+    let ww = win.width;
+    let mut out = vec![0f64; ww * win.height];
+    if out.is_empty() {
+        return out;
+    }
+    let rows = (CHUNK / ww).max(1);
+    out.par_chunks_mut(rows * ww).enumerate().for_each(|(c, o)| {
+        for (r, o) in o.chunks_mut(ww).enumerate() {
+            let at = (win.y + c * rows + r) * w + win.x;
+            let rr = &rec[at..at + ww];
+            if kinds.is_empty() {
+                for (o, &k) in o.iter_mut().zip(rr) {
+                    *o = value(k);
+                }
+            } else {
+                let kd = &kinds[at..at + ww];
+                for ((o, &k), &kind) in o.iter_mut().zip(rr).zip(kd) {
+                    *o = if kind == SKIPPED { fill } else { value(k) };
+                }
             }
         }
     });

@@ -392,9 +392,10 @@ fn h_edge<C: SymCoder, S: Store>(
 /// A band's reconstructions and magnitudes, pass row by pass row.
 type BandBuf = (Vec<i64>, Vec<u8>);
 
-/// Run the bands of one pass with a coder each (`make` gives band b's, `done` takes it
-/// back): on one thread one after the other straight into the planes, else side by side,
-/// each into buffers of its own, then written into the planes. The same values either way.
+/// Run consecutive bands of one pass (all of them, or those a window needs) with a coder
+/// each (`make` gives the b-th's, `done` takes it back): on one thread one after the
+/// other straight into the planes, else side by side, each into buffers of its own, then
+/// written into the planes. The same values either way.
 pub(super) fn run_pass<C: SymCoder + Send, T: Send>(
     g: &Global,
     pass: Pass,
@@ -448,7 +449,11 @@ fn scatter(
     mag: &mut [u8],
 ) {
     let cols = pass.cols(w);
-    let per = bands.first().map_or(1, |b| b.1 - b.0).max(1);
+    // `bands` are consecutive (all of the pass's, or those a window needs), each but the
+    // last as many pass rows as the first.
+    let (Some(&(first, next)), Some(&(_, end))) = (bands.first(), bands.last()) else {
+        return;
+    };
     rec.par_chunks_mut(w)
         .zip(mag.par_chunks_mut(w))
         .enumerate()
@@ -457,7 +462,10 @@ fn scatter(
                 return;
             }
             let k = (y - pass.r0) / pass.rs;
-            let b = k / per;
+            if k < first || k >= end {
+                return;
+            }
+            let b = (k - first) / (next - first).max(1);
             let Some((br, bm)) = bufs.get(b) else { return };
             let from = (k - bands[b].0) * cols;
             for (col, (&v, &m)) in br[from..from + cols].iter().zip(&bm[from..from + cols]).enumerate() {

@@ -15,6 +15,7 @@ use crate::entropy::rans::{
 use crate::entropy::varint;
 use crate::error::{Error, Result};
 use rayon::prelude::*;
+use std::ops::Range;
 
 mod band;
 mod clusters;
@@ -25,7 +26,7 @@ use band::{Global, run_pass};
 use clusters::cluster;
 use fit::fit;
 pub use fit::resolve;
-use passes::{ALPHABET, BAND_LOG2, GROUPS, FINE, Kind, NCTX, SymCoder, passes, token};
+use passes::{ALPHABET, BAND_LOG2, GROUPS, FINE, Kind, NCTX, Pass, SymCoder, passes, token};
 pub use passes::{Config, DEFAULT_BAND_LOG2, NW};
 
 /// The encoder's first pass over a band: tokens, their contexts and the raw bits.
@@ -194,8 +195,40 @@ fn read_varint(rd: &mut ByteReader, what: &str) -> Result<u64> {
     Err(rd.corrupt(format!("{what} is not a varint")))
 }
 
+/// The bands of each pass (ranges of band indices) a decode of the raster rows `rows` runs.
+/// From the finest pass back to the anchors: a pass must reconstruct the rows of `rows`
+/// and every row the bands run by finer passes read of it ([`Pass::reach`] around each of
+/// their rows: a band runs whole, from its first row, so all its rows count); it runs
+/// the bands that hold any of them.
+fn needed(passes: &[Pass], bands: &[Vec<(usize, usize)>], h: usize, rows: Range<usize>) -> Vec<Range<usize>> {
+    let (mut lo, mut hi) = (rows.start, rows.end.min(h));
+    let mut out = vec![0..0; passes.len()];
+    for (k, (pass, bands)) in passes.iter().zip(bands).enumerate().rev() {
+        let (Some(&(per0, per1)), Some(&(_, end))) = (bands.first(), bands.last()) else {
+            continue;
+        };
+        // The pass rows r0 + j·rs in lo..hi.
+        let j0 = lo.saturating_sub(pass.r0).div_ceil(pass.rs);
+        let j1 = if hi > pass.r0 { ((hi - 1 - pass.r0) / pass.rs + 1).min(end) } else { 0 };
+        if j0 >= j1 {
+            continue;
+        }
+        // Every band but the last holds `per` pass rows.
+        let per = per1 - per0;
+        let (b0, b1) = (j0 / per, (j1 - 1) / per + 1);
+        out[k] = b0..b1;
+        let first = pass.r0 + bands[b0].0 * pass.rs;
+        let last = pass.r0 + (bands[b1 - 1].1 - 1) * pass.rs;
+        lo = lo.min(first.saturating_sub(pass.reach()));
+        hi = hi.max((last + pass.reach() + 1).min(h));
+    }
+    out
+}
+
 /// Decode the plane from the rest of the section (`rd` just after the exceptions).
-/// `values` holds the fixed samples' values; `max_bin` bounds a bin's magnitude.
+/// `values` holds the fixed samples' values; `max_bin` bounds a bin's magnitude. Only the
+/// raster rows `rows` are sure to be reconstructed: the bands they do not need are
+/// length-checked, not decoded ([`needed`]; the others' samples are left 0).
 pub fn decode(
     rd: &mut ByteReader,
     p: &Plane,
@@ -203,6 +236,7 @@ pub fn decode(
     tighten: bool,
     weights: &[[i16; NW]],
     max_bin: u64,
+    rows: Range<usize>,
 ) -> Result<Vec<i64>> {
     let (w, h) = (p.width, p.height);
     let band_log2 = rd.u8("band size")?;
@@ -241,9 +275,10 @@ pub fn decode(
     let base: [usize; NCTX] = map.map(|c| c * rans::TOTAL as usize);
     // The streams: lengths first, then the bytes.
     let passes = passes(cfg, p.bin);
+    let bands: Vec<Vec<(usize, usize)>> = passes.iter().map(|pass| pass.bands(w, h, band_log2)).collect();
     let mut lens = Vec::new();
-    for pass in &passes {
-        for _ in 0..pass.bands(w, h, band_log2).len() {
+    for b in &bands {
+        for _ in 0..b.len() {
             let a = read_varint(rd, "stream length")?;
             let r = read_varint(rd, "stream length")?;
             lens.push((a, r));
@@ -260,20 +295,20 @@ pub fn decode(
     let mut rec = vec![0i64; n];
     let mut mag = vec![0u8; n];
     let g = Global::new(p);
+    let pick = needed(&passes, &bands, h, rows);
     let mut next = 0;
     let mut next_w = weights.iter();
-    for mut pass in passes {
+    for ((mut pass, bands), pick) in passes.into_iter().zip(&bands).zip(pick) {
         if pass.kind != Kind::Anchor && pass.level() <= cfg.ls_levels {
             // All-zero weights correct nothing: the plain prediction (the same values).
             pass.weights = next_w.next().copied().filter(|w| *w != [0; NW]);
         }
-        let bands = pass.bands(w, h, band_log2);
-        let mine = &slices[next..next + bands.len()];
+        let mine = &slices[next + pick.start..next + pick.end];
         next += bands.len();
         run_pass(
             &g,
             pass,
-            &bands,
+            &bands[pick],
             (&mut rec, &mut mag),
             |b| {
                 let (a, r) = mine[b];
@@ -364,13 +399,13 @@ mod tests {
             let max_bin = (p.hi - p.lo) as u64 / super::super::narrowest_bin(bin, 4, tighten) as u64 + 1;
             for threads in [1, 2, 3] {
                 let back = crate::methods::with_threads(threads, || {
-                    decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, &wts, max_bin)
+                    decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, &wts, max_bin, 0..h)
                 })
                 .unwrap();
                 assert_eq!(back, rec, "bin {bin}, {threads} threads");
             }
             for cut in (0..bytes.len()).step_by(7) {
-                let r = decode(&mut ByteReader::new(&bytes[..cut], "t"), &p, 4, tighten, &wts, max_bin);
+                let r = decode(&mut ByteReader::new(&bytes[..cut], "t"), &p, 4, tighten, &wts, max_bin, 0..h);
                 assert!(r.is_err(), "bin {bin}: a prefix of {cut} bytes decoded");
             }
             // One flipped bit in the streams decodes to an error or other samples, never a
@@ -378,8 +413,101 @@ mod tests {
             for k in (bytes.len() / 2..bytes.len()).step_by(13) {
                 let mut bad = bytes.clone();
                 bad[k] ^= 0x10;
-                let _ = decode(&mut ByteReader::new(&bad, "t"), &p, 4, tighten, &wts, max_bin);
+                let _ = decode(&mut ByteReader::new(&bad, "t"), &p, 4, tighten, &wts, max_bin, 0..h);
             }
+        }
+    }
+
+    /// A tall plane (several bands in every pass of levels 1 to 3 at bands of 2^10) of a
+    /// rough surface, with a skipped disc and a fixed patch unless `all_coded`.
+    fn tall_plane(w: usize, h: usize, all_coded: bool) -> (Vec<u8>, Vec<i64>) {
+        let mut s = 11u64;
+        let mut kinds = vec![CODED; w * h];
+        let mut values = vec![0i64; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let i = y * w + x;
+                let (fx, fy) = (x as f64 / 9.0, y as f64 / 13.0);
+                values[i] = (300.0 * fx.sin() * fy.cos() + 2.0 * y as f64) as i64 + ((s >> 58) as i64 - 32);
+                if all_coded {
+                    continue;
+                }
+                if (x as isize - w as isize / 3).pow(2) + (y as isize - h as isize / 4).pow(2) < 60 {
+                    kinds[i] = super::super::plane::SKIPPED;
+                }
+                if (w / 2..w / 2 + 9).contains(&x) && (h / 2..h / 2 + 23).contains(&y) {
+                    kinds[i] = FIXED;
+                    values[i] = 77;
+                }
+            }
+        }
+        (if all_coded { Vec::new() } else { kinds }, values)
+    }
+
+    /// A decode of any rows reconstructs them as the full decode does (the bands it skips
+    /// are none that they need), on one thread and two, while skipping bands.
+    #[test]
+    fn a_window_decodes_its_rows_as_the_full_decode_does() {
+        let cases = [
+            (131, 517, false, 1, false, 3),
+            (131, 517, true, 5, true, 2),
+            (37, 1903, false, 3, false, 3),
+            (64, 1500, false, 41, true, 0),
+        ];
+        for (w, h, all_coded, bin, tighten, ls) in cases {
+            let (kinds, values) = tall_plane(w, h, all_coded);
+            let p = Plane {
+                width: w,
+                height: h,
+                kinds: &kinds,
+                values: &values,
+                lo: *values.iter().min().unwrap(),
+                hi: *values.iter().max().unwrap(),
+                bin,
+            };
+            let cfg = Config {
+                levels: 4,
+                ls_levels: ls,
+                tighten,
+                tighten_auto: false,
+                band_log2: 10,
+            };
+            let what = format!("{w}x{h}, bin {bin}, {ls} stencil levels");
+            let (wts, bytes, rec) = encode(&p, cfg).unwrap();
+            assert_eq!(wts.len(), 2 * ls as usize, "{what}: a stencil on every level it may");
+            let all = passes(cfg, bin);
+            let bands: Vec<_> = all.iter().map(|pass| pass.bands(w, h, 10)).collect();
+            for (pass, b) in all.iter().zip(&bands) {
+                if pass.kind != Kind::Anchor && pass.level() <= 3 {
+                    assert!(b.len() >= 2, "{what}: {pass:?} has {} bands", b.len());
+                }
+            }
+            let max_bin = (p.hi - p.lo) as u64 / super::super::narrowest_bin(bin, 4, tighten) as u64 + 1;
+            let dec = |rows: Range<usize>| decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, &wts, max_bin, rows);
+            assert_eq!(dec(0..h).unwrap(), rec, "{what}: the full decode");
+            // Every single row, the first and last few, and random ranges.
+            let mut windows: Vec<Range<usize>> = (0..h).map(|y| y..y + 1).collect();
+            windows.extend([0..2, 0..h, h - 3..h, 1..h - 1]);
+            let mut r = 5u64;
+            for _ in 0..120 {
+                r = r.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let y0 = (r >> 33) as usize % h;
+                let len = 1 + (r >> 13) as usize % (h - y0).min(if r & 1 == 0 { 8 } else { h });
+                windows.push(y0..y0 + len);
+            }
+            for threads in [1, 2] {
+                let pool = crate::methods::thread_pool(threads).unwrap();
+                for rows in &windows {
+                    let back = pool.install(|| dec(rows.clone())).unwrap_or_else(|e| panic!("{what}: rows {rows:?}: {e}"));
+                    let span = rows.start * w..rows.end * w;
+                    assert!(back[span.clone()] == rec[span], "{what}, {threads} threads: rows {rows:?} differ");
+                }
+            }
+            // A row in the middle skips most bands.
+            let pick = needed(&all, &bands, h, h / 2..h / 2 + 1);
+            let (run, of): (usize, usize) = (pick.iter().map(|r| r.len()).sum(), bands.iter().map(Vec::len).sum());
+            assert!(run * 2 < of, "{what}: a row runs {run} of {of} bands");
         }
     }
 

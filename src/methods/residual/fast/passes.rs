@@ -85,6 +85,17 @@ impl Pass {
     pub(super) fn cols(&self, w: usize) -> usize {
         if self.c0 < w { (w - 1 - self.c0) / self.cs + 1 } else { 0 }
     }
+    /// How many raster rows above and below its own a sample of the pass reads samples of
+    /// earlier passes: the vertical pass's support y ± 3s (its stencil and neighbours lie
+    /// within y ± s), the horizontal pass's stencil rows y ± s (its support lies in row
+    /// y); the anchors read only anchors. Reads of the pass itself stay in the band.
+    pub(super) fn reach(&self) -> usize {
+        match self.kind {
+            Kind::Anchor => 0,
+            Kind::Vertical => 3 * self.s,
+            Kind::Horizontal => self.s,
+        }
+    }
     /// The bands: ranges of pass rows, each of max(1, ⌊2^band_log2 / cols⌋) rows but the
     /// last; the anchors are one band.
     pub(super) fn bands(&self, w: usize, h: usize, band_log2: u8) -> Vec<(usize, usize)> {
