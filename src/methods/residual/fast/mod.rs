@@ -366,27 +366,37 @@ mod tests {
         (kinds, values)
     }
 
+    /// A plane of `kinds` and `values` with their range as lo ..= hi.
+    fn test_plane<'a>(w: usize, h: usize, kinds: &'a [u8], values: &'a [i64], bin: i64) -> Plane<'a> {
+        Plane {
+            width: w,
+            height: h,
+            kinds,
+            values,
+            lo: *values.iter().min().unwrap(),
+            hi: *values.iter().max().unwrap(),
+            bin,
+        }
+    }
+
+    /// Four levels, bands of 2^10 samples.
+    fn test_config(ls_levels: u32, tighten: bool) -> Config {
+        Config {
+            levels: 4,
+            ls_levels,
+            tighten,
+            tighten_auto: false,
+            band_log2: 10,
+        }
+    }
+
     #[test]
     fn bands_round_trip_on_any_thread_count_and_every_prefix_fails() {
         let (w, h) = (97, 83);
         let (kinds, values) = plane_data(w, h);
         for (bin, tighten, ls) in [(1, false, 3), (5, false, 2), (41, true, 3), (301, true, 0)] {
-            let p = Plane {
-                width: w,
-                height: h,
-                kinds: &kinds,
-                values: &values,
-                lo: *values.iter().min().unwrap(),
-                hi: *values.iter().max().unwrap(),
-                bin,
-            };
-            let cfg = Config {
-                levels: 4,
-                ls_levels: ls,
-                tighten,
-                tighten_auto: false,
-                band_log2: 10,
-            };
+            let p = test_plane(w, h, &kinds, &values, bin);
+            let cfg = test_config(ls, tighten);
             let (wts, bytes, rec) = encode(&p, cfg).unwrap();
             assert!(wts.len() <= 2 * ls as usize);
             for (i, (&r, &k)) in rec.iter().zip(&kinds).enumerate() {
@@ -457,22 +467,8 @@ mod tests {
         ];
         for (w, h, all_coded, bin, tighten, ls) in cases {
             let (kinds, values) = tall_plane(w, h, all_coded);
-            let p = Plane {
-                width: w,
-                height: h,
-                kinds: &kinds,
-                values: &values,
-                lo: *values.iter().min().unwrap(),
-                hi: *values.iter().max().unwrap(),
-                bin,
-            };
-            let cfg = Config {
-                levels: 4,
-                ls_levels: ls,
-                tighten,
-                tighten_auto: false,
-                band_log2: 10,
-            };
+            let p = test_plane(w, h, &kinds, &values, bin);
+            let cfg = test_config(ls, tighten);
             let what = format!("{w}x{h}, bin {bin}, {ls} stencil levels");
             let (wts, bytes, rec) = encode(&p, cfg).unwrap();
             assert_eq!(wts.len(), 2 * ls as usize, "{what}: a stencil on every level it may");
