@@ -26,7 +26,9 @@ pub const BLOCK: usize = 8;
 
 /// Label the 4-connected components of `flat` (a `w`-wide bitmap) in raster order: the
 /// component holding the first flat sample is 1, the next one not yet labelled 2, and so
-/// on; 0 marks samples that are not flat. Returns the labels and the component count.
+/// on; 0 marks samples that are not flat. Returns the labels and the component count. The
+/// definition (a flood fill, sample by sample) that [`label_runs`] is tested against.
+#[cfg(test)]
 pub(crate) fn label(flat: &[bool], w: usize) -> (Vec<u32>, u32) {
     let n = flat.len();
     let mut lab = vec![0u32; n];
@@ -144,6 +146,48 @@ pub(crate) fn label_runs(flat: &[bool], w: usize) -> (Vec<(u64, u32, u32)>, u32)
     (out, count)
 }
 
+/// Label `id` into `comp` over the 4-connected component of valid samples equal to sample
+/// `s`'s value (unlabelled so far), a row span at a time (a scanline flood fill: the same
+/// samples as a fill sample by sample, in far fewer steps over a sea); returns its size.
+fn fill_span(r: &Raster, comp: &mut [u32], stack: &mut Vec<usize>, s: usize, id: u32) -> usize {
+    let (w, n) = (r.width, r.len());
+    let v = r.data[s];
+    let open = |comp: &[u32], j: usize| comp[j] == u32::MAX && r.is_valid(j) && r.data[j] == v;
+    let mut size = 0;
+    stack.push(s);
+    while let Some(i) = stack.pop() {
+        if !open(comp, i) {
+            continue;
+        }
+        let row = i - i % w;
+        let (mut a, mut b) = (i, i);
+        while a > row && open(comp, a - 1) {
+            a -= 1;
+        }
+        while b + 1 < row + w && open(comp, b + 1) {
+            b += 1;
+        }
+        comp[a..=b].fill(id);
+        size += b - a + 1;
+        // One seed per run of open samples in the rows above and below the span.
+        for other in [(row >= w).then(|| row - w), (row + w < n).then(|| row + w)]
+            .into_iter()
+            .flatten()
+        {
+            let mut in_run = false;
+            for x in a - row..=b - row {
+                let j = other + x;
+                let o = open(comp, j);
+                if o && !in_run {
+                    stack.push(j);
+                }
+                in_run = o;
+            }
+        }
+    }
+    size
+}
+
 /// The flat regions of `r`: per sample its region's value, NaN outside every region; `None`
 /// when there is none. A region is the union of the aligned [`BLOCK`]² blocks (clipped at
 /// the raster's edges) whose samples are all valid and lie in one 4-connected component of
@@ -183,27 +227,7 @@ pub(crate) fn find(r: &Raster) -> Option<Vec<f64>> {
         let s = (b / bw) * BLOCK * w + (b % bw) * BLOCK;
         if comp[s] == u32::MAX {
             let id = sizes.len() as u32;
-            let v = r.data[s];
-            let mut size = 0usize;
-            comp[s] = id;
-            stack.push(s);
-            while let Some(i) = stack.pop() {
-                size += 1;
-                let x = i % w;
-                let nb = [
-                    (x > 0).then(|| i - 1),
-                    (x + 1 < w).then(|| i + 1),
-                    (i >= w).then(|| i - w),
-                    (i + w < n).then(|| i + w),
-                ];
-                for j in nb.into_iter().flatten() {
-                    if comp[j] == u32::MAX && r.is_valid(j) && r.data[j] == v {
-                        comp[j] = id;
-                        stack.push(j);
-                    }
-                }
-            }
-            sizes.push(size);
+            sizes.push(fill_span(r, &mut comp, &mut stack, s, id));
         }
         // Per block the component it lies wholly in (of at least MIN_REGION samples).
         let c = comp[s];
@@ -245,13 +269,15 @@ pub(crate) fn find(r: &Raster) -> Option<Vec<f64>> {
         }
     }
     // Regions (as a decoder labels them) below the minimum go.
-    let (lab, count) = label(&flat, w);
-    let mut region_size = vec![0usize; count as usize + 1];
-    for &l in &lab {
-        region_size[l as usize] += 1;
+    let (runs, count) = label_runs(&flat, w);
+    let mut region_size = vec![0usize; count as usize];
+    for &(_, len, l) in &runs {
+        region_size[l as usize] += len as usize;
     }
-    for i in 0..n {
-        flat[i] &= region_size[lab[i] as usize] >= MIN_PIECE;
+    for &(start, len, l) in &runs {
+        if region_size[l as usize] < MIN_PIECE {
+            flat[start as usize..start as usize + len as usize].fill(false);
+        }
     }
     let mut any = false;
     let out: Vec<f64> = (0..n)
