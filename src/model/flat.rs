@@ -66,11 +66,13 @@ pub(crate) fn label(flat: &[bool], w: usize) -> (Vec<u32>, u32) {
     (lab, count)
 }
 
-/// [`label`] as runs: every maximal run of flat samples along a row as (first sample index,
-/// length, label − 1), in raster order, and the component count. The same components and
-/// numbers as [`label`] (a run lies in one 4-connected component; runs of neighbouring rows
+/// The 4-connected components of `flat` as runs: every maximal run of flat samples along a
+/// row as (first sample index, length, component − 1), components numbered in raster order
+/// from 1 as `label` numbers them, and the component count. The same components and
+/// numbers as `label` (a run lies in one 4-connected component; runs of neighbouring rows
 /// that share a column are joined), found by union–find over the runs instead of a flood
-/// fill over the samples: a sea of millions of samples is a few thousand runs.
+/// fill over the samples: a sea of millions of samples is a few thousand runs. `label`, the
+/// flood fill, stays as the definition the tests hold it to.
 pub(crate) fn label_runs(flat: &[bool], w: usize) -> (Vec<(u64, u32, u32)>, u32) {
     let w = w.max(1);
     // (first sample index, length) per run, rows in order; union–find parents.
@@ -192,7 +194,7 @@ fn fill_span(r: &Raster, comp: &mut [u32], stack: &mut Vec<usize>, s: usize, id:
 /// when there is none. A region is the union of the aligned [`BLOCK`]² blocks (clipped at
 /// the raster's edges) whose samples are all valid and lie in one 4-connected component of
 /// one exact value of at least [`MIN_REGION`] samples; a block touching a kept block of
-/// another component is left out (so that [`label`] of the result gives regions of one
+/// another component is left out (so that [`label_runs`] of the result gives regions of one
 /// value each to a decoder that sees only the blocks), and so is a region of fewer than
 /// [`MIN_PIECE`] samples.
 pub(crate) fn find(r: &Raster) -> Option<Vec<f64>> {
