@@ -4,6 +4,7 @@
 //! step for floats), so that lossless means exact lattice indices and a bound below half a
 //! step means lossless.
 
+use rayon::prelude::*;
 use crate::model::{Raster, SampleType};
 use crate::quant::finish;
 
@@ -48,7 +49,6 @@ fn exact(r: &Raster, d: Domain) -> Option<Vec<i64>> {
 /// [`exact`] allowing up to `misses` samples off the lattice: their indices (sorted).
 fn near(r: &Raster, d: Domain, misses: usize) -> Option<(Vec<i64>, Vec<usize>)> {
     let mut out = vec![0i64; r.len()];
-    let mut off = Vec::new();
     // On the whole numbers (most DEMs), a whole value v in range is its own index and its
     // own finished value: the same answer as the general test below, without its roundings
     // (a library call each on baseline x86-64).
@@ -59,35 +59,50 @@ fn near(r: &Raster, d: Domain, misses: usize) -> Option<(Vec<i64>, Vec<usize>)> 
         _ => |_| false,
     };
     let int_own = r.mapping.is_identity().then(|| r.sample_type.int_range()).flatten();
-    for (i, &v) in r.data.iter().enumerate() {
-        if !r.is_valid(i) {
-            continue;
-        }
-        if whole {
-            let k = v as i64;
-            let own = match int_own {
-                Some((lo, hi)) => v >= lo && v <= hi,
-                None => own_value(v),
-            };
-            if k as f64 == v && k.abs() <= MAX_UNITS && own {
-                out[i] = k;
-                continue;
+    // Chunks of samples side by side, each with its samples off the lattice (`None`: an
+    // index out of range, or more misses than allowed in the chunk alone); joined in order,
+    // the same answer as one pass over the samples.
+    const CHUNK: usize = 1 << 16;
+    let offs: Option<Vec<Vec<usize>>> = out
+        .par_chunks_mut(CHUNK)
+        .enumerate()
+        .map(|(c, o)| {
+            let mut off = Vec::new();
+            for (j, slot) in o.iter_mut().enumerate() {
+                let i = c * CHUNK + j;
+                if !r.is_valid(i) {
+                    continue;
+                }
+                let v = r.data[i];
+                if whole {
+                    let k = v as i64;
+                    let own = match int_own {
+                        Some((lo, hi)) => v >= lo && v <= hi,
+                        None => own_value(v),
+                    };
+                    if k as f64 == v && k.abs() <= MAX_UNITS && own {
+                        *slot = k;
+                        continue;
+                    }
+                }
+                let k = d.index(v);
+                if k.is_nan() || k.abs() > MAX_UNITS as f64 {
+                    return None;
+                }
+                let k = k as i64;
+                if finish(d.raw(k), r.sample_type, r.mapping) != v {
+                    if off.len() == misses {
+                        return None;
+                    }
+                    off.push(i);
+                }
+                *slot = k;
             }
-        }
-        let k = d.index(v);
-        if k.is_nan() || k.abs() > MAX_UNITS as f64 {
-            return None;
-        }
-        let k = k as i64;
-        if finish(d.raw(k), r.sample_type, r.mapping) != v {
-            if off.len() == misses {
-                return None;
-            }
-            off.push(i);
-        }
-        out[i] = k;
-    }
-    Some((out, off))
+            Some(off)
+        })
+        .collect();
+    let off = offs?.concat();
+    (off.len() <= misses).then_some((out, off))
 }
 
 /// Float data almost on whole numbers or a decimal step (DEMs whose voids were filled by
@@ -294,6 +309,26 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// Over several chunks: misses spread over chunks count together, against a limit
+    /// below, at and above their number.
+    #[test]
+    fn misses_in_several_chunks_count_together() {
+        let mut rng = Rng(9);
+        let (w, h) = (1000, 300);
+        let data: Vec<f64> = (0..w * h)
+            .map(|i| if i % 40_000 == 7 { 0.25 } else { rng.below(3000) as f64 })
+            .collect();
+        let misses = data.iter().filter(|&&v| v == 0.25).count();
+        assert!(misses > 4 && w * h > 4 << 16);
+        let r = Raster::from_values(w, h, data, None, SampleType::F32).unwrap();
+        let whole = Domain { mul: 1.0, div: 1.0, offset: 0.0 };
+        for m in [0, misses - 1, misses, misses + 1] {
+            let got = near(&r, whole, m);
+            assert_eq!(got, near_reference(&r, whole, m), "limit {m}");
+            assert_eq!(got.is_some(), m >= misses, "limit {m}");
         }
     }
 }
