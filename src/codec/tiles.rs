@@ -183,7 +183,7 @@ pub fn encode_tiled<W: Write + Seek>(
     // of about 64 M samples of source bands.
     let want = (8 * pool.current_num_threads()).div_ceil(cols).max(1);
     let budget = (64usize << 20) / (w * th).max(1);
-    let group = want.min(budget).max(1);
+    let group = want.min(budget.saturating_sub(2)).max(1);
     let mut report = EncodeReport {
         max_error: 0.0,
         method: Method::GRID,
@@ -350,13 +350,14 @@ fn decode_tiles<R: Read + Seek>(
     );
     // Rows of tiles decoded at once: enough tiles that every thread has a few (tiles of sea
     // and of mountains differ tenfold in time, and a row of tiles may hold fewer tiles than
-    // there are threads), within about 64 M samples of decoded tiles.
+    // there are threads), within about 64 M samples of decoded tiles held (a batch and the
+    // two rows of tiles a band also blends), never fewer than one row at a time.
     let per_row = touched.len().div_ceil(last_row + 1 - first_row).max(1);
     let m2 = 2 * grid.margin as usize;
     let tile_samples = (grid.tile_w as usize + m2) * (th + m2);
     let want = (4 * pool.current_num_threads()).div_ceil(per_row);
     let budget = (64usize << 20) / (per_row * tile_samples).max(1);
-    let group = want.min(budget).max(1);
+    let group = want.min(budget.saturating_sub(2)).max(1);
     // Decoded tiles, kept while a band they contribute to is still to come.
     let mut decoded: std::collections::BTreeMap<usize, Decoded> = std::collections::BTreeMap::new();
     let mut next_row = first_row;
