@@ -484,6 +484,29 @@ impl<R: Read + Seek> Decoder<R> {
         }
     }
 
+    /// The source's GDAL metadata (the XML of its GDAL_METADATA tag) as a full decode gives
+    /// it back, read without decoding a sample: byte for byte when the file is lossless,
+    /// without the `STATISTICS_…` items when it is lossy (the decoded samples' statistics
+    /// differ from the source's). `None` when the source had none.
+    pub fn gdal_metadata(&mut self) -> Result<Option<String>> {
+        let xml = match &mut self.rd {
+            Opened::Untiled(rd) => rd.read_gdal_metadata()?,
+            Opened::Tiled(rd) => rd
+                .global_section(crate::container::SectionKind::GDAL_METADATA)?
+                .map(|b| {
+                    String::from_utf8(b)
+                        .map_err(|_| Error::corrupt("gdal-metadata section is not UTF-8"))
+                })
+                .transpose()?,
+        };
+        let Some(xml) = xml else { return Ok(None) };
+        Ok(Some(if self.max_error()? != 0.0 {
+            formats::without_statistics(&xml).into_owned()
+        } else {
+            xml
+        }))
+    }
+
     /// The max error each section guarantees, as stored in it (`None` for a section that is
     /// not a method's: the mask, flat regions, metadata); read without decoding. A tiled
     /// file's global sections hold no method (its tiles' bounds are in

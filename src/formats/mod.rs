@@ -29,6 +29,13 @@ pub(crate) use pam::without_statistics;
 pub use png::PngMapping;
 use std::path::Path;
 
+/// The CRS of a georeference as GDAL's `OGRSpatialReference::SetFromUserInput` takes it
+/// (what vtz writes into a PAM `<SRS>`): its WKT when known (its own, else EPSG's from
+/// vtz's table), else `EPSG:n`, else the source's PROJ string; `None` without a CRS.
+pub fn crs_user_input(g: &crate::model::Georef) -> Option<String> {
+    crs::crs_user_input(g).map(|c| c.into_owned())
+}
+
 /// Raster file formats vtz reads and writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {

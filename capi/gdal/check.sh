@@ -1,0 +1,353 @@
+#!/usr/bin/env bash
+# The GDAL driver plugin's checks (CI): GDAL programs and osgeo Python read, window and
+# write .vtz files through gdal_VTZ.so exactly as the vtz CLI decodes them.
+#
+#   capi/gdal/check.sh VTZ_CLI PLUGIN_DIR
+#   e.g. capi/gdal/check.sh target/release/vtz target/gdal-plugin
+#
+# Needs gdal-bin and python3-gdal (with numpy). Exits non-zero on the first failure.
+# MUTATIONS (default 1000) sets how many mutated files check 8 opens.
+set -euo pipefail
+
+if [ $# -ne 2 ]; then
+    echo "usage: $0 VTZ_CLI PLUGIN_DIR" >&2
+    exit 2
+fi
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+root="$(cd "$here/../.." && pwd)"
+VTZ="$(cd "$(dirname "$1")" && pwd)/$(basename "$1")"
+export GDAL_DRIVER_PATH="$(cd "$2" && pwd)"
+[ -x "$VTZ" ] || { echo "FAIL: no vtz CLI at $VTZ" >&2; exit 1; }
+[ -f "$GDAL_DRIVER_PATH/gdal_VTZ.so" ] || { echo "FAIL: no gdal_VTZ.so in $GDAL_DRIVER_PATH" >&2; exit 1; }
+
+# The python with osgeo.gdal (Debian's python3-gdal is for /usr/bin/python3).
+PY="${PYTHON:-}"
+if [ -z "$PY" ]; then
+    for p in python3 /usr/bin/python3; do
+        if "$p" -c 'import osgeo.gdal, numpy' 2>/dev/null; then PY="$p"; break; fi
+    done
+fi
+[ -n "$PY" ] || { echo "FAIL: no python3 with osgeo.gdal and numpy (apt-get install python3-gdal)" >&2; exit 1; }
+
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+cd "$work"
+export GDAL_PAM_ENABLED=NO   # no .aux.xml files beside the test files
+step() { echo "== $*"; }
+ok() { echo "   ok: $*"; }
+
+# Python helpers, one subcommand each (the compare logic lives here).
+cat >chk.py <<'PYEOF'
+import json, os, random, subprocess, sys
+from concurrent.futures import ThreadPoolExecutor
+import numpy as np
+from osgeo import gdal, osr
+gdal.UseExceptions()
+
+def fail(msg):
+    print("FAIL: " + msg, file=sys.stderr)
+    sys.exit(1)
+
+def info(path):
+    out = subprocess.run(["gdalinfo", "-json", path], check=True, capture_output=True, text=True).stdout
+    return json.loads(out)
+
+def md(obj, domain=""):
+    # TIFFTAG_* items are the TIFF container's (vtz decode writes resolution tags), not data.
+    d = (obj.get("metadata") or {}).get(domain, {})
+    return {k: v for k, v in d.items() if not (domain == "" and k.startswith("TIFFTAG_"))}
+
+def make_float(src, dst):
+    """A Float32 DEM with nodata (-9999) holes, band description, unit and metadata."""
+    s = gdal.Open(src)
+    a = s.ReadAsArray().astype(np.float32)[100:700, 200:1000]
+    a = a + np.float32(0.25) * np.sin(np.arange(800, dtype=np.float32) / 7)[None, :]
+    a[a <= 0] = -9999.0
+    a[50:80, 300:400] = -9999.0
+    gt = list(s.GetGeoTransform()); gt[0] += 200 * gt[1]; gt[3] += 100 * gt[5]
+    d = gdal.GetDriverByName("GTiff").Create(dst, 800, 600, 1, gdal.GDT_Float32)
+    d.SetGeoTransform(gt); d.SetProjection(s.GetProjection())
+    d.SetMetadataItem("SOURCE", "kauai & test <float>")
+    b = d.GetRasterBand(1); b.WriteArray(a); b.SetNoDataValue(-9999.0)
+    b.SetDescription("elevation"); b.SetUnitType("m"); b.SetMetadataItem("VERTICAL_DATUM", "EGM96")
+
+def same_info(vtz, tif):
+    """gdalinfo of the .vtz shows what gdalinfo of its decoded GeoTIFF shows."""
+    a, b = info(vtz), info(tif)
+    if a["driverShortName"] != "VTZ":
+        fail(f"{vtz}: opened by {a['driverShortName']}, not VTZ")
+    checks = {
+        "size": (a["size"], b["size"]),
+        "geoTransform": (a.get("geoTransform"), b.get("geoTransform")),
+        "metadata": (md(a), md(b)),
+        "band type": (a["bands"][0]["type"], b["bands"][0]["type"]),
+        "nodata": (a["bands"][0].get("noDataValue"), b["bands"][0].get("noDataValue")),
+        "band metadata": (md(a["bands"][0]), md(b["bands"][0])),
+        "band description": (a["bands"][0].get("description"), b["bands"][0].get("description")),
+        "band unit": (a["bands"][0].get("unit"), b["bands"][0].get("unit")),
+        "band count": (len(a["bands"]), len(b["bands"])),
+    }
+    for what, (x, y) in checks.items():
+        if x != y:
+            fail(f"{vtz}: {what} {x!r} != {tif}'s {y!r}")
+    wa = a.get("coordinateSystem", {}).get("wkt", "")
+    wb = b.get("coordinateSystem", {}).get("wkt", "")
+    if bool(wa) != bool(wb):
+        fail(f"{vtz}: CRS present {bool(wa)} vs {bool(wb)}")
+    if wa:
+        sa, sb = osr.SpatialReference(wkt=wa), osr.SpatialReference(wkt=wb)
+        if not sa.IsSame(sb):
+            fail(f"{vtz}: CRS differs:\n{wa}\n--- vs ---\n{wb}")
+    st = md(a, "IMAGE_STRUCTURE")
+    for k in ("COMPRESSION", "MAX_Z_ERROR", "VTZ_TILED"):
+        if k not in st:
+            fail(f"{vtz}: no {k} in the IMAGE_STRUCTURE metadata: {st}")
+    print(f"   {os.path.basename(vtz)}: size {a['size']}, nodata {checks['nodata'][0]}, "
+          f"CRS {'same text' if wa == wb else 'IsSame'}, metadata {md(a)} / band {md(a['bands'][0])}, "
+          f"{st['VTZ_TILED']=} {st['MAX_Z_ERROR']=}")
+
+def arrays_equal(a, b):
+    if a.shape != b.shape or a.dtype != b.dtype:
+        return False
+    if a.dtype.kind == "f":
+        bits = np.dtype(f"u{a.dtype.itemsize}")
+        same = a.view(bits) == b.view(bits)
+        return bool(np.all(same | (np.isnan(a) & np.isnan(b))))
+    return bool(np.array_equal(a, b))
+
+def same_raster(x, y):
+    """Two GDAL rasters hold the same samples bit for bit, nodata, geotransform and CRS."""
+    a, b = gdal.Open(x), gdal.Open(y)
+    ba, bb = a.GetRasterBand(1), b.GetRasterBand(1)
+    if (a.RasterXSize, a.RasterYSize) != (b.RasterXSize, b.RasterYSize):
+        fail(f"{x} / {y}: sizes differ")
+    if not arrays_equal(ba.ReadAsArray(), bb.ReadAsArray()):
+        fail(f"{x} / {y}: samples differ")
+    if ba.GetNoDataValue() != bb.GetNoDataValue():
+        fail(f"{x} / {y}: nodata {ba.GetNoDataValue()} != {bb.GetNoDataValue()}")
+    if a.GetGeoTransform() != b.GetGeoTransform():
+        fail(f"{x} / {y}: geotransform {a.GetGeoTransform()} != {b.GetGeoTransform()}")
+    sa, sb = a.GetSpatialRef(), b.GetSpatialRef()
+    if (sa is None) != (sb is None) or (sa is not None and not sa.IsSame(sb)):
+        fail(f"{x} / {y}: CRS differs")
+
+def windows(vtz, ref):
+    """gdal_translate -srcwin, gdallocationinfo and osgeo ReadAsArray windows equal crops."""
+    full = gdal.Open(ref).ReadAsArray()
+    ds = gdal.Open(vtz)
+    band = ds.GetRasterBand(1)
+    bw, bh = band.GetBlockSize()
+    W, H = ds.RasterXSize, ds.RasterYSize
+    wins = [(0, 0, 17, 9), (bw - 5, bh - 7, 30, 20), (bw - 1, 0, 2, H), (0, bh - 1, W, 2),
+            (max(0, W - 11), max(0, H - 13), min(W, 11), min(H, 13)), (bw // 2, bh // 2, min(W - bw // 2, 2 * bw + 3), min(H - bh // 2, bh + 1)),
+            (1, 1, W - 2, H - 2), (W // 3, H // 3, 1, 1)]
+    for i, (x, y, w, h) in enumerate(wins):
+        crop = full[y:y + h, x:x + w]
+        out = f"win{i}.tif"
+        subprocess.run(["gdal_translate", "-q", "-of", "GTiff", "-srcwin", str(x), str(y), str(w), str(h), vtz, out], check=True)
+        got = gdal.Open(out).ReadAsArray().reshape(h, w)
+        if not arrays_equal(got, crop):
+            fail(f"{vtz}: gdal_translate -srcwin {x} {y} {w} {h} differs from the crop")
+        arr = band.ReadAsArray(x, y, w, h)
+        if not arrays_equal(arr, crop):
+            fail(f"{vtz}: ReadAsArray({x}, {y}, {w}, {h}) differs from the crop")
+        # Another buffer type, through GDAL's conversion.
+        arr64 = band.ReadAsArray(x, y, w, h, buf_type=gdal.GDT_Float64)
+        if not np.array_equal(arr64, crop.astype(np.float64), equal_nan=True):
+            fail(f"{vtz}: ReadAsArray({x}, {y}, {w}, {h}, Float64) differs from the crop")
+    # A resampled read goes through GDAL's default path: compare with GDAL's own result
+    # on the reference.
+    if not arrays_equal(band.ReadAsArray(0, 0, W, H, W // 3, H // 3),
+                        gdal.Open(ref).GetRasterBand(1).ReadAsArray(0, 0, W, H, W // 3, H // 3)):
+        fail(f"{vtz}: a decimated read differs from the reference's")
+    for (x, y) in [(0, 0), (bw, bh), (W - 1, H - 1), (bw - 1, min(H - 1, bh))]:
+        v = subprocess.run(["gdallocationinfo", "-valonly", vtz, str(x), str(y)], check=True,
+                           capture_output=True, text=True).stdout.strip()
+        if float(v) != float(full[y, x]):
+            fail(f"{vtz}: gdallocationinfo {x} {y} = {v}, the decode has {full[y, x]}")
+    print(f"   {os.path.basename(vtz)}: {len(wins)} windows (block {bw}x{bh}), 4 locations, a decimated read")
+
+def bound(src, out_ref, e):
+    """The decode of a GDAL-written .vtz is within e of the source on valid samples,
+    with the same nodata mask (e = 0: bit for bit)."""
+    s, d = gdal.Open(src), gdal.Open(out_ref)
+    a = s.GetRasterBand(1).ReadAsArray().astype(np.float64)
+    b = d.GetRasterBand(1).ReadAsArray().astype(np.float64)
+    nd = s.GetRasterBand(1).GetNoDataValue()
+    va = ~np.isnan(a) if nd is None else (a != nd) & ~np.isnan(a)
+    vb = ~np.isnan(b) if nd is None else (b != nd) & ~np.isnan(b)
+    if not np.array_equal(va, vb):
+        fail(f"{out_ref}: nodata mask differs from {src}'s")
+    err = float(np.max(np.abs(a[va] - b[va]))) if va.any() else 0.0
+    if err > e:
+        fail(f"{out_ref}: max |out - in| = {err} > {e}")
+    if e == 0 and not arrays_equal(s.GetRasterBand(1).ReadAsArray(), d.GetRasterBand(1).ReadAsArray()):
+        fail(f"{out_ref}: a lossless round trip changed bits")
+    if d.GetGeoTransform() != s.GetGeoTransform():
+        fail(f"{out_ref}: geotransform {d.GetGeoTransform()} != {s.GetGeoTransform()}")
+    if not d.GetSpatialRef().IsSame(s.GetSpatialRef()):
+        fail(f"{out_ref}: CRS differs from {src}'s")
+    if d.GetRasterBand(1).GetNoDataValue() != nd:
+        fail(f"{out_ref}: nodata {d.GetRasterBand(1).GetNoDataValue()} != {nd}")
+    for what, x, y in [("description", d.GetRasterBand(1).GetDescription(), s.GetRasterBand(1).GetDescription()),
+                       ("unit", d.GetRasterBand(1).GetUnitType(), s.GetRasterBand(1).GetUnitType()),
+                       ("band metadata", d.GetRasterBand(1).GetMetadata(), s.GetRasterBand(1).GetMetadata()),
+                       ("metadata", d.GetMetadata(), s.GetMetadata())]:
+        if x != y:
+            fail(f"{out_ref}: {what} {x!r} != {src}'s {y!r}")
+    print(f"   {os.path.basename(out_ref)}: max |out - in| = {err} <= {e}, mask, georef, metadata kept")
+
+def corrupt_offset(info_json):
+    """The offset of a byte in the middle of a middle tile's block, and that tile's window."""
+    d = json.load(open(info_json))
+    idx = d["tiles"]["index"]
+    t = idx[len(idx) // 2]
+    print(t["offset"] + t["bytes"] // 2, t["tile"], t["x"], t["y"], t["width"], t["height"])
+
+def fuzz(paths, n, seed=27):
+    """gdalinfo -checksum on n mutated copies never dies of a signal (exit 0 or 1)."""
+    rng = random.Random(seed)
+    datas = [open(p, "rb").read() for p in paths]
+    os.makedirs("fuzz", exist_ok=True)
+    jobs = []
+    for i in range(n):
+        data = bytearray(datas[i % len(datas)])
+        kind = rng.random()
+        if kind < 0.15:
+            data = data[:rng.randrange(len(data))]
+        else:
+            # 1-4 flips, half the time in the header and directory (first 256 bytes).
+            for _ in range(rng.randint(1, 4)):
+                hi = min(256, len(data)) if rng.random() < 0.5 else len(data)
+                p = rng.randrange(hi)
+                data[p] ^= rng.randrange(1, 256)
+            if kind > 0.9:
+                data = data[:rng.randrange(len(data))]
+        p = f"fuzz/m{i}.vtz"
+        open(p, "wb").write(bytes(data))
+        jobs.append(p)
+    def run(p):
+        try:
+            r = subprocess.run(["gdalinfo", "-checksum", p], capture_output=True, timeout=60)
+        except subprocess.TimeoutExpired:
+            return (p, "timeout")
+        return (p, r.returncode)
+    bad, counts = [], {}
+    with ThreadPoolExecutor(max_workers=max(2, os.cpu_count() or 2)) as ex:
+        for p, rc in ex.map(run, jobs):
+            counts[rc] = counts.get(rc, 0) + 1
+            if rc not in (0, 1):
+                bad.append((p, rc))
+    if bad:
+        for p, rc in bad[:10]:
+            import shutil; shutil.copy(p, os.environ.get("FUZZ_KEEP", "/tmp"))
+        fail(f"{len(bad)} of {n} mutated files ended gdalinfo with {bad[:10]} (copies kept in /tmp)")
+    print(f"   {n} mutated files: exit codes {counts}")
+
+if __name__ == "__main__":
+    cmd, args = sys.argv[1], sys.argv[2:]
+    if cmd == "make_float": make_float(*args)
+    elif cmd == "same_info": same_info(*args)
+    elif cmd == "same_raster": same_raster(*args)
+    elif cmd == "windows": windows(*args)
+    elif cmd == "bound": bound(args[0], args[1], float(args[2]))
+    elif cmd == "corrupt_offset": corrupt_offset(*args)
+    elif cmd == "fuzz": fuzz(args[1:], int(args[0]))
+    else: fail(f"unknown helper {cmd}")
+PYEOF
+
+# Expect a command to fail with a GDAL error whose text matches a pattern (never a signal).
+expect_error() {
+    local pattern="$1"; shift
+    local rc=0
+    "$@" >out.txt 2>err.txt || rc=$?
+    if [ "$rc" -eq 0 ]; then echo "FAIL: '$*' succeeded, expected an error" >&2; exit 1; fi
+    if [ "$rc" -gt 128 ]; then echo "FAIL: '$*' died of signal $((rc - 128))" >&2; cat err.txt >&2; exit 1; fi
+    if ! grep -qiE "$pattern" err.txt; then
+        echo "FAIL: '$*' gave no error matching /$pattern/:" >&2; cat err.txt >&2; exit 1
+    fi
+    ok "'$*' → exit $rc: $(grep -iE "$pattern" err.txt | head -1)"
+}
+
+step "1. gdalinfo --formats lists the VTZ driver (GDAL $(gdal-config --version 2>/dev/null || gdalinfo --version))"
+gdalinfo --formats | grep -E '^ *VTZ -raster- \(rw' || { echo "FAIL: no VTZ driver in gdalinfo --formats" >&2; exit 1; }
+ok "driver listed"
+
+step "inputs: Kauai (Int16) as GeoTIFF, a Float32 DEM with nodata, each encoded untiled and tiled (--tile 256)"
+"$VTZ" -q convert "$root/corpus/srtm3_N22W160_kauai.hgt" kauai.tif
+"$PY" chk.py make_float kauai.tif float.tif
+for s in kauai float; do
+    "$VTZ" -q encode $s.tif -o ${s}_v1.vtz --max-error 1
+    "$VTZ" -q encode $s.tif -o ${s}_v2.vtz --max-error 1 --tile 256
+    "$VTZ" -q encode $s.tif -o ${s}_ll.vtz --lossless --tile 256
+done
+names="kauai_v1 kauai_v2 kauai_ll float_v1 float_v2 float_ll"
+for n in $names; do "$VTZ" -q decode $n.vtz -o $n.ref.tif; done
+ok "$(ls *.vtz | tr '\n' ' ')"
+
+step "2. gdalinfo of each .vtz shows the size, CRS, geotransform, nodata and metadata of its vtz-decoded GeoTIFF"
+for n in $names; do "$PY" chk.py same_info $n.vtz $n.ref.tif; done
+
+step "3. gdal_translate -of GTiff X.vtz equals vtz decode X.vtz bit for bit (and the golden files their expected samples)"
+for n in $names; do
+    gdal_translate -q -of GTiff $n.vtz $n.gdal.tif
+    "$PY" chk.py same_raster $n.gdal.tif $n.ref.tif
+    ok "$n"
+done
+for g in "$root"/tests/golden/v[12]_*.vtz; do
+    b="$(basename "$g" .vtz)"
+    [ -f "$root/tests/golden/$b.expected.f32" ] || continue
+    gdal_translate -q -of ENVI -ot Float32 "$g" g.raw
+    cmp -s g.raw "$root/tests/golden/$b.expected.f32" || { echo "FAIL: $b: GDAL's Float32 read differs from $b.expected.f32" >&2; exit 1; }
+    ok "golden $b"
+done
+
+step "4 + 6. windows: gdal_translate -srcwin, gdallocationinfo and osgeo ReadAsArray(x, y, w, h) equal crops of the full decode"
+for n in $names; do "$PY" chk.py windows $n.vtz $n.ref.tif; done
+
+step "5. gdal_translate -of VTZ: the bound holds, vtz verify passes, LOSSLESS=YES round-trips exactly"
+for s in kauai float; do
+    gdal_translate -q -of VTZ -co MAX_Z_ERROR=1 $s.tif $s.gdal1.vtz
+    "$VTZ" verify $s.gdal1.vtz
+    "$VTZ" -q decode $s.gdal1.vtz -o $s.gdal1.tif
+    "$PY" chk.py bound $s.tif $s.gdal1.tif 1
+    gdal_translate -q -of VTZ -co LOSSLESS=YES -co TILE=256 -co EFFORT=3 -co THREADS=2 $s.tif $s.gdal0.vtz
+    "$VTZ" verify $s.gdal0.vtz
+    "$VTZ" -q decode $s.gdal0.vtz -o $s.gdal0.tif
+    "$PY" chk.py bound $s.tif $s.gdal0.tif 0
+    gdalinfo $s.gdal0.vtz | grep -q "VTZ_TILED=YES" || { echo "FAIL: TILE=256 did not tile" >&2; exit 1; }
+done
+gdal_translate -q -of VTZ -co MAX_Z_ERROR=1% -co METHOD=residual -co TILE=NONE kauai.tif kauai.pct.vtz
+"$VTZ" verify kauai.pct.vtz
+"$VTZ" -q decode kauai.pct.vtz -o kauai.pct.tif
+"$PY" chk.py bound kauai.tif kauai.pct.tif 16.13   # 1% of Kauai's range (-34 .. 1579)
+expect_error "contradict" gdal_translate -q -of VTZ -co LOSSLESS=YES -co MAX_Z_ERROR=1 kauai.tif bad.vtz
+expect_error "EFFORT" gdal_translate -q -of VTZ -co EFFORT=12 kauai.tif bad.vtz
+expect_error "one band" gdal_translate -q -of VTZ -b 1 -b 1 kauai.tif bad.vtz
+expect_error "read-only|update" "$PY" -c "from osgeo import gdal; gdal.UseExceptions(); gdal.Open('kauai_v1.vtz', gdal.GA_Update)"
+
+step "7. errors, not crashes: a corrupt tile, a truncated file, a point set"
+"$VTZ" info --json kauai_v2.vtz >kauai_v2.json
+read -r off tile tx ty tw th < <("$PY" chk.py corrupt_offset kauai_v2.json)
+cp kauai_v2.vtz corrupt.vtz
+"$PY" -c "import sys; f=open('corrupt.vtz','r+b'); f.seek($off); b=f.read(1); f.seek($off); f.write(bytes([b[0]^0x5a]))"
+echo "   flipped byte $off (inside tile $tile at $tx,$ty ${tw}x${th})"
+gdalinfo corrupt.vtz >/dev/null
+ok "gdalinfo opens it (the tile is not read)"
+expect_error "tile|corrupt|checksum|crc" gdal_translate -q -of GTiff corrupt.vtz corrupt.tif
+expect_error "tile|corrupt|checksum|crc" gdallocationinfo -valonly corrupt.vtz $((tx + 1)) $((ty + 1))
+gdal_translate -q -of GTiff -srcwin 0 0 10 10 corrupt.vtz corner.tif
+ok "a window away from tile $tile still reads"
+head -c $(( $(stat -c %s kauai_v1.vtz) / 2 )) kauai_v1.vtz >trunc.vtz
+expect_error "vtz: .*(truncat|short|end of|eof)" gdalinfo trunc.vtz
+expect_error "point set .* not a raster" gdalinfo "$root/tests/golden/v3_points.vtz"
+
+step "8. gdalinfo -checksum on ${MUTATIONS:-1000} mutated small files never crashes"
+"$VTZ" -q convert "$root/corpus/srtm3_N22W160_kauai.hgt" big.tif
+gdal_translate -q -srcwin 500 500 300 200 big.tif small.tif
+"$VTZ" -q encode small.tif -o small_v2.vtz --max-error 1 --tile 64
+"$VTZ" -q encode small.tif -o small_v1.vtz --max-error 2
+"$VTZ" -q encode small.tif -o small_fast.vtz --effort 1
+"$PY" chk.py fuzz "${MUTATIONS:-1000}" small_v2.vtz small_v1.vtz small_fast.vtz
+
+echo "all GDAL plugin checks passed"

@@ -1,0 +1,1084 @@
+/*
+ * vtzdataset.cpp: the GDAL raster driver for `.vtz` files (plugin gdal_VTZ.so).
+ *
+ * A thin C++ shim over vtz's C ABI (capi/include/vtz.h); all decoding and encoding is
+ * done by the Rust library, linked statically into the plugin. Built by
+ * capi/build-gdal-plugin.sh, checked by capi/gdal/check.sh.
+ *
+ * What GDAL sees:
+ * - Identify: the 8-byte magic `\x89VTZ\r\n\x1a\n`. Format versions 1 (untiled raster)
+ *   and 2 (tiled raster) open; version 3 (a point set) is refused with a clear error.
+ * - One read-only band of the file's sample type, with nodata, geotransform, CRS,
+ *   AREA_OR_POINT, and the GDAL_METADATA XML applied as the GTiff driver applies its
+ *   GDAL_METADATA tag (dataset items, band items: description, unit type, offset, scale,
+ *   metadata, per domain).
+ * - IMAGE_STRUCTURE metadata (as GTiff reports LERC): COMPRESSION=VTZ, MAX_Z_ERROR (the
+ *   bound the file guarantees, 0 = lossless), VTZ_TILED=YES/NO, VTZ_VERSION.
+ * - Blocks: a version-2 tile is a GDAL block (edge blocks padded with nodata, or 0), so a
+ *   window decodes only the tiles it touches. A version-1 file is decoded whole on the
+ *   first read and cached; its blocks are strips of full rows served from the cache.
+ * - Full-resolution RasterIO bypasses the block cache: a version-1 read copies from the
+ *   cache, a version-2 read touching several tiles is one vtz_read of the window (its
+ *   tiles decode in parallel).
+ * - CreateCopy (gdal_translate -of VTZ) with MAX_Z_ERROR, LOSSLESS, METHOD, EFFORT, TILE,
+ *   THREADS.
+ * Threads: the GDAL_NUM_THREADS configuration option (a number or ALL_CPUS, the default)
+ * sets the threads of a decode.
+ */
+
+#include "gdal_pam.h"
+#include "gdal_priv.h"
+#include "cpl_minixml.h"
+#include "cpl_string.h"
+#include "cpl_vsi.h"
+#include "ogr_spatialref.h"
+
+#include <algorithm>
+#include <climits>
+#include <cmath>
+#include <cstring>
+#include <new>
+#include <string>
+#include <vector>
+
+#include "vtz.h"
+
+namespace
+{
+
+const GByte kMagic[8] = {0x89, 'V', 'T', 'Z', '\r', '\n', 0x1a, '\n'};
+
+/// Report the last vtz error of this thread as a GDAL error.
+void ReportVtzError(const char *pszWhat = nullptr)
+{
+    const char *pszMsg = vtz_last_error();
+    if (pszMsg == nullptr || pszMsg[0] == '\0')
+        pszMsg = "unknown error";
+    if (pszWhat)
+        CPLError(CE_Failure, CPLE_AppDefined, "vtz: %s: %s", pszWhat, pszMsg);
+    else
+        CPLError(CE_Failure, CPLE_AppDefined, "vtz: %s", pszMsg);
+}
+
+bool VtzToGDALType(int32_t nType, GDALDataType *peType)
+{
+    switch (nType)
+    {
+        case VTZ_U8: *peType = GDT_Byte; return true;
+        case VTZ_I16: *peType = GDT_Int16; return true;
+        case VTZ_U16: *peType = GDT_UInt16; return true;
+        case VTZ_I32: *peType = GDT_Int32; return true;
+        case VTZ_F32: *peType = GDT_Float32; return true;
+        case VTZ_F64: *peType = GDT_Float64; return true;
+        default: return false;
+    }
+}
+
+int GDALToVtzType(GDALDataType eType)
+{
+    switch (eType)
+    {
+        case GDT_Byte: return VTZ_U8;
+        case GDT_Int16: return VTZ_I16;
+        case GDT_UInt16: return VTZ_U16;
+        case GDT_Int32: return VTZ_I32;
+        case GDT_Float32: return VTZ_F32;
+        case GDT_Float64: return VTZ_F64;
+        default: return -1;
+    }
+}
+
+/// Threads for a decode, from GDAL_NUM_THREADS (0 = all the machine offers).
+uint32_t DecodeThreads()
+{
+    const char *pszThreads = CPLGetConfigOption("GDAL_NUM_THREADS", "ALL_CPUS");
+    if (EQUAL(pszThreads, "ALL_CPUS"))
+        return 0;
+    const int n = atoi(pszThreads);
+    return n > 0 ? static_cast<uint32_t>(n) : 1;
+}
+
+/// A text the C ABI gives with the two-call pattern (size, then copy); empty when none.
+template <class F> std::string TwoCallText(F fn)
+{
+    const size_t nNeed = fn(nullptr, 0);
+    if (nNeed <= 1)
+        return std::string();
+    std::string osBuf(nNeed, '\0');
+    if (fn(&osBuf[0], nNeed) != nNeed)
+        return std::string();
+    osBuf.resize(strlen(osBuf.c_str()));
+    return osBuf;
+}
+
+bool IsCopiedDomain(const char *pszDomain)
+{
+    // Domains that describe the source file, not its values (or that hold a single XML/
+    // JSON document, which this driver does not carry).
+    return !(EQUAL(pszDomain, "IMAGE_STRUCTURE") ||
+             EQUAL(pszDomain, "DERIVED_SUBDATASETS") ||
+             EQUAL(pszDomain, "SUBDATASETS") || EQUAL(pszDomain, "RPC") ||
+             EQUAL(pszDomain, "GEOLOCATION") ||
+             EQUAL(pszDomain, "COLOR_PROFILE") ||
+             STARTS_WITH_CI(pszDomain, "xml:") ||
+             STARTS_WITH_CI(pszDomain, "json:"));
+}
+
+}  // namespace
+
+/************************************************************************/
+/*                            VTZDataset                                */
+/************************************************************************/
+
+class VTZRasterBand;
+
+class VTZDataset final : public GDALPamDataset
+{
+    friend class VTZRasterBand;
+
+    VtzFile *m_hFile = nullptr;
+    VtzInfo m_sInfo{};
+    GDALDataType m_eDT = GDT_Unknown;
+    int m_nDTSize = 0;
+    OGRSpatialReference m_oSRS{};
+
+    // Version 1: the whole raster, decoded on the first read.
+    std::vector<GByte> m_abyCache{};
+    bool m_bCacheFailed = false;
+
+    bool EnsureCache();
+    CPLErr ReadWindow(int nXOff, int nYOff, int nXSize, int nYSize, void *pData,
+                      GDALDataType eBufType, GSpacing nPixelSpace,
+                      GSpacing nLineSpace);
+    void ApplyGDALMetadata(const char *pszXML);
+
+  public:
+    VTZDataset() = default;
+    ~VTZDataset() override;
+
+    CPLErr GetGeoTransform(double *padfTransform) override;
+    const OGRSpatialReference *GetSpatialRef() const override;
+
+    static int Identify(GDALOpenInfo *poOpenInfo);
+    static GDALDataset *Open(GDALOpenInfo *poOpenInfo);
+    static GDALDataset *CreateCopy(const char *pszFilename, GDALDataset *poSrcDS,
+                                   int bStrict, char **papszOptions,
+                                   GDALProgressFunc pfnProgress,
+                                   void *pProgressData);
+};
+
+/************************************************************************/
+/*                           VTZRasterBand                              */
+/************************************************************************/
+
+class VTZRasterBand final : public GDALPamRasterBand
+{
+    friend class VTZDataset;
+
+    bool m_bHasNoData = false;
+    double m_dfNoData = 0.0;
+    // From the GDAL metadata (role="unittype" / "offset" / "scale").
+    std::string m_osUnitType{};
+    bool m_bHasOffset = false, m_bHasScale = false;
+    double m_dfOffset = 0.0, m_dfScale = 1.0;
+
+    void FillNoData(void *pImage, size_t nCount) const;
+
+  public:
+    VTZRasterBand(VTZDataset *poDS, int nBlockX, int nBlockY);
+
+    CPLErr IReadBlock(int nBlockXOff, int nBlockYOff, void *pImage) override;
+    CPLErr IRasterIO(GDALRWFlag eRWFlag, int nXOff, int nYOff, int nXSize,
+                     int nYSize, void *pData, int nBufXSize, int nBufYSize,
+                     GDALDataType eBufType, GSpacing nPixelSpace,
+                     GSpacing nLineSpace,
+                     GDALRasterIOExtraArg *psExtraArg) override;
+
+    // The file's values come first; PAM (.aux.xml) fills what the file lacks.
+    double GetNoDataValue(int *pbSuccess = nullptr) override;
+    const char *GetUnitType() override;
+    GDALColorInterp GetColorInterpretation() override
+    {
+        return GCI_GrayIndex;
+    }
+    double GetOffset(int *pbSuccess = nullptr) override;
+    double GetScale(int *pbSuccess = nullptr) override;
+};
+
+VTZRasterBand::VTZRasterBand(VTZDataset *poDSIn, int nBlockX, int nBlockY)
+{
+    poDS = poDSIn;
+    nBand = 1;
+    eDataType = poDSIn->m_eDT;
+    nBlockXSize = nBlockX;
+    nBlockYSize = nBlockY;
+    if (poDSIn->m_sInfo.has_nodata)
+    {
+        m_bHasNoData = true;
+        m_dfNoData = poDSIn->m_sInfo.nodata;
+    }
+}
+
+/// Fill `nCount` samples of the band's type with nodata (0 without one).
+void VTZRasterBand::FillNoData(void *pImage, size_t nCount) const
+{
+    const double dfFill = m_bHasNoData ? m_dfNoData : 0.0;
+    GDALCopyWords64(&dfFill, GDT_Float64, 0, pImage, eDataType,
+                    GDALGetDataTypeSizeBytes(eDataType),
+                    static_cast<GPtrDiff_t>(nCount));
+}
+
+CPLErr VTZRasterBand::IReadBlock(int nBlockXOff, int nBlockYOff, void *pImage)
+{
+    VTZDataset *poGDS = static_cast<VTZDataset *>(poDS);
+    const int nDTSize = poGDS->m_nDTSize;
+    const int nX0 = nBlockXOff * nBlockXSize;
+    const int nY0 = nBlockYOff * nBlockYSize;
+    const int nW = std::min(nBlockXSize, nRasterXSize - nX0);
+    const int nH = std::min(nBlockYSize, nRasterYSize - nY0);
+    const size_t nBlockSamples =
+        static_cast<size_t>(nBlockXSize) * static_cast<size_t>(nBlockYSize);
+
+    if (nW < nBlockXSize || nH < nBlockYSize)
+        FillNoData(pImage, nBlockSamples);
+
+    if (!poGDS->m_sInfo.tiled)
+    {
+        // A strip of full rows out of the whole-raster cache.
+        if (!poGDS->EnsureCache())
+            return CE_Failure;
+        memcpy(pImage,
+               poGDS->m_abyCache.data() + static_cast<size_t>(nY0) *
+                                              nRasterXSize * nDTSize,
+               static_cast<size_t>(nH) * nRasterXSize * nDTSize);
+        return CE_None;
+    }
+
+    // One tile: decode exactly its samples (a full-width block straight into pImage).
+    return poGDS->ReadWindow(nX0, nY0, nW, nH, pImage, eDataType, nDTSize,
+                             static_cast<GSpacing>(nBlockXSize) * nDTSize);
+}
+
+CPLErr VTZRasterBand::IRasterIO(GDALRWFlag eRWFlag, int nXOff, int nYOff,
+                                int nXSize, int nYSize, void *pData,
+                                int nBufXSize, int nBufYSize,
+                                GDALDataType eBufType, GSpacing nPixelSpace,
+                                GSpacing nLineSpace,
+                                GDALRasterIOExtraArg *psExtraArg)
+{
+    VTZDataset *poGDS = static_cast<VTZDataset *>(poDS);
+    // Full-resolution reads only; resampled reads (and writes, refused) go the default way.
+    if (eRWFlag == GF_Read && nXSize == nBufXSize && nYSize == nBufYSize &&
+        nXSize > 0 && nYSize > 0)
+    {
+        if (!poGDS->m_sInfo.tiled)
+        {
+            if (!poGDS->EnsureCache())
+                return CE_Failure;
+            const int nDTSize = poGDS->m_nDTSize;
+            for (int iY = 0; iY < nYSize; ++iY)
+            {
+                const GByte *pabySrc =
+                    poGDS->m_abyCache.data() +
+                    (static_cast<size_t>(nYOff + iY) * nRasterXSize + nXOff) *
+                        nDTSize;
+                GDALCopyWords64(pabySrc, eDataType, nDTSize,
+                                static_cast<GByte *>(pData) + iY * nLineSpace,
+                                eBufType, static_cast<int>(nPixelSpace), nXSize);
+            }
+            return CE_None;
+        }
+        // A window over several tiles: one vtz_read, its tiles decoded in parallel. A
+        // window within one tile uses that tile's (cached) block.
+        const int nTX0 = nXOff / nBlockXSize;
+        const int nTX1 = (nXOff + nXSize - 1) / nBlockXSize;
+        const int nTY0 = nYOff / nBlockYSize;
+        const int nTY1 = (nYOff + nYSize - 1) / nBlockYSize;
+        if (nTX0 != nTX1 || nTY0 != nTY1)
+            return poGDS->ReadWindow(nXOff, nYOff, nXSize, nYSize, pData,
+                                     eBufType, nPixelSpace, nLineSpace);
+    }
+    return GDALPamRasterBand::IRasterIO(eRWFlag, nXOff, nYOff, nXSize, nYSize,
+                                        pData, nBufXSize, nBufYSize, eBufType,
+                                        nPixelSpace, nLineSpace, psExtraArg);
+}
+
+double VTZRasterBand::GetNoDataValue(int *pbSuccess)
+{
+    if (m_bHasNoData)
+    {
+        if (pbSuccess)
+            *pbSuccess = TRUE;
+        return m_dfNoData;
+    }
+    return GDALPamRasterBand::GetNoDataValue(pbSuccess);
+}
+
+const char *VTZRasterBand::GetUnitType()
+{
+    if (!m_osUnitType.empty())
+        return m_osUnitType.c_str();
+    return GDALPamRasterBand::GetUnitType();
+}
+
+double VTZRasterBand::GetOffset(int *pbSuccess)
+{
+    if (m_bHasOffset)
+    {
+        if (pbSuccess)
+            *pbSuccess = TRUE;
+        return m_dfOffset;
+    }
+    return GDALPamRasterBand::GetOffset(pbSuccess);
+}
+
+double VTZRasterBand::GetScale(int *pbSuccess)
+{
+    if (m_bHasScale)
+    {
+        if (pbSuccess)
+            *pbSuccess = TRUE;
+        return m_dfScale;
+    }
+    return GDALPamRasterBand::GetScale(pbSuccess);
+}
+
+/************************************************************************/
+/*                         VTZDataset methods                           */
+/************************************************************************/
+
+VTZDataset::~VTZDataset()
+{
+    FlushCache(true);
+    vtz_close(m_hFile);
+}
+
+/// Decode a version-1 file whole, once. On failure the error is reported on each call.
+bool VTZDataset::EnsureCache()
+{
+    if (!m_abyCache.empty())
+        return true;
+    if (m_bCacheFailed)
+    {
+        CPLError(CE_Failure, CPLE_AppDefined,
+                 "vtz: %s: the raster failed to decode before", GetDescription());
+        return false;
+    }
+    const size_t nBytes = static_cast<size_t>(nRasterXSize) *
+                          static_cast<size_t>(nRasterYSize) * m_nDTSize;
+    try
+    {
+        m_abyCache.resize(nBytes);
+    }
+    catch (const std::bad_alloc &)
+    {
+        m_bCacheFailed = true;
+        CPLError(CE_Failure, CPLE_OutOfMemory,
+                 "vtz: cannot allocate %zu bytes to decode %s", nBytes,
+                 GetDescription());
+        return false;
+    }
+    if (vtz_read(m_hFile, 0, 0, static_cast<uint32_t>(nRasterXSize),
+                 static_cast<uint32_t>(nRasterYSize), m_sInfo.sample_type,
+                 m_abyCache.data(), nBytes, DecodeThreads()) != VTZ_OK)
+    {
+        ReportVtzError(GetDescription());
+        std::vector<GByte>().swap(m_abyCache);
+        m_bCacheFailed = true;
+        return false;
+    }
+    return true;
+}
+
+/// Decode the window into pData (samples of eBufType at the given spacings): straight
+/// into it when it is a packed buffer of the file's type, else through a scratch buffer.
+CPLErr VTZDataset::ReadWindow(int nXOff, int nYOff, int nXSize, int nYSize,
+                              void *pData, GDALDataType eBufType,
+                              GSpacing nPixelSpace, GSpacing nLineSpace)
+{
+    const size_t nSamples =
+        static_cast<size_t>(nXSize) * static_cast<size_t>(nYSize);
+    const size_t nBytes = nSamples * m_nDTSize;
+    const bool bDirect =
+        eBufType == m_eDT && nPixelSpace == m_nDTSize &&
+        nLineSpace == static_cast<GSpacing>(nXSize) * m_nDTSize &&
+        reinterpret_cast<uintptr_t>(pData) % m_nDTSize == 0;
+    void *pBuf = bDirect ? pData : VSI_MALLOC_VERBOSE(nBytes);
+    if (pBuf == nullptr)
+        return CE_Failure;
+    const int rc = vtz_read(m_hFile, static_cast<uint32_t>(nXOff),
+                            static_cast<uint32_t>(nYOff),
+                            static_cast<uint32_t>(nXSize),
+                            static_cast<uint32_t>(nYSize), m_sInfo.sample_type,
+                            pBuf, nBytes, DecodeThreads());
+    if (rc != VTZ_OK)
+    {
+        ReportVtzError(CPLSPrintf("%s: window %d,%d %dx%d", GetDescription(),
+                                  nXOff, nYOff, nXSize, nYSize));
+        if (!bDirect)
+            VSIFree(pBuf);
+        return CE_Failure;
+    }
+    if (!bDirect)
+    {
+        for (int iY = 0; iY < nYSize; ++iY)
+            GDALCopyWords64(static_cast<GByte *>(pBuf) +
+                                static_cast<size_t>(iY) * nXSize * m_nDTSize,
+                            m_eDT, m_nDTSize,
+                            static_cast<GByte *>(pData) + iY * nLineSpace,
+                            eBufType, static_cast<int>(nPixelSpace), nXSize);
+        VSIFree(pBuf);
+    }
+    return CE_None;
+}
+
+CPLErr VTZDataset::GetGeoTransform(double *padfTransform)
+{
+    if (m_sInfo.has_geotransform)
+    {
+        memcpy(padfTransform, m_sInfo.geotransform, 6 * sizeof(double));
+        return CE_None;
+    }
+    return GDALPamDataset::GetGeoTransform(padfTransform);
+}
+
+const OGRSpatialReference *VTZDataset::GetSpatialRef() const
+{
+    if (!m_oSRS.IsEmpty())
+        return &m_oSRS;
+    return GDALPamDataset::GetSpatialRef();
+}
+
+/// Apply the file's GDAL_METADATA XML the way the GTiff driver applies its tag: items
+/// without `sample` are dataset metadata (in their `domain`), items with sample="0" are
+/// band 1's, with role description / unittype / offset / scale taken as such.
+void VTZDataset::ApplyGDALMetadata(const char *pszXML)
+{
+    CPLXMLNode *psRoot = nullptr;
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    psRoot = CPLParseXMLString(pszXML);
+    CPLPopErrorHandler();
+    if (psRoot == nullptr || psRoot->eType != CXT_Element ||
+        !EQUAL(psRoot->pszValue, "GDALMetadata"))
+    {
+        CPLError(CE_Warning, CPLE_AppDefined,
+                 "vtz: %s: the GDAL metadata is not a <GDALMetadata> document; "
+                 "ignored",
+                 GetDescription());
+        CPLDestroyXMLNode(psRoot);
+        return;
+    }
+    VTZRasterBand *poBand = static_cast<VTZRasterBand *>(GetRasterBand(1));
+    for (CPLXMLNode *psItem = psRoot->psChild; psItem; psItem = psItem->psNext)
+    {
+        if (psItem->eType != CXT_Element || !EQUAL(psItem->pszValue, "Item"))
+            continue;
+        const char *pszKey = CPLGetXMLValue(psItem, "name", nullptr);
+        const char *pszValue = CPLGetXMLValue(psItem, nullptr, nullptr);
+        const char *pszSample = CPLGetXMLValue(psItem, "sample", nullptr);
+        const char *pszRole = CPLGetXMLValue(psItem, "role", "");
+        const char *pszDomain = CPLGetXMLValue(psItem, "domain", "");
+        if (pszKey == nullptr || pszValue == nullptr ||
+            EQUAL(pszDomain, "IMAGE_STRUCTURE"))
+            continue;
+        // GTiff unescapes the (already parsed) value once more; do the same so a
+        // file reads here exactly as its GeoTIFF does.
+        char *pszText = CPLUnescapeString(pszValue, nullptr, CPLES_XML);
+        if (pszSample == nullptr)
+        {
+            GDALDataset::SetMetadataItem(pszKey, pszText, pszDomain);
+        }
+        else if (atoi(pszSample) == 0)
+        {
+            if (EQUAL(pszRole, "description"))
+                poBand->GDALRasterBand::SetDescription(pszText);
+            else if (EQUAL(pszRole, "unittype"))
+                poBand->m_osUnitType = pszText;
+            else if (EQUAL(pszRole, "offset"))
+            {
+                poBand->m_bHasOffset = true;
+                poBand->m_dfOffset = CPLAtofM(pszText);
+            }
+            else if (EQUAL(pszRole, "scale"))
+            {
+                poBand->m_bHasScale = true;
+                poBand->m_dfScale = CPLAtofM(pszText);
+            }
+            else if (pszRole[0] == '\0')
+                poBand->GDALRasterBand::SetMetadataItem(pszKey, pszText,
+                                                        pszDomain);
+        }
+        // Items of other samples (bands) do not exist in a one-band file: ignored.
+        CPLFree(pszText);
+    }
+    CPLDestroyXMLNode(psRoot);
+}
+
+int VTZDataset::Identify(GDALOpenInfo *poOpenInfo)
+{
+    return poOpenInfo->nHeaderBytes >= 10 &&
+           memcmp(poOpenInfo->pabyHeader, kMagic, sizeof(kMagic)) == 0;
+}
+
+GDALDataset *VTZDataset::Open(GDALOpenInfo *poOpenInfo)
+{
+    if (!Identify(poOpenInfo))
+        return nullptr;
+    const char *pszFilename = poOpenInfo->pszFilename;
+    const int nVersion =
+        poOpenInfo->pabyHeader[8] | (poOpenInfo->pabyHeader[9] << 8);
+    if (nVersion == 3)
+    {
+        CPLError(CE_Failure, CPLE_NotSupported,
+                 "vtz: %s: a vtz point set (format version 3) is not a raster; "
+                 "`vtz decode` turns it into points or a gridded raster",
+                 pszFilename);
+        return nullptr;
+    }
+    if (poOpenInfo->eAccess == GA_Update)
+    {
+        CPLError(CE_Failure, CPLE_NotSupported,
+                 "vtz: the VTZ driver opens files read-only; write a new file "
+                 "with gdal_translate -of VTZ");
+        return nullptr;
+    }
+
+    // Open by path; a /vsi path (in memory, in an archive, on the network) is read
+    // whole and opened from memory.
+    VtzFile *hFile = nullptr;
+    int rc;
+    if (STARTS_WITH(pszFilename, "/vsi"))
+    {
+        GByte *pabyData = nullptr;
+        vsi_l_offset nSize = 0;
+        if (!VSIIngestFile(nullptr, pszFilename, &pabyData, &nSize, -1))
+            return nullptr;  // VSIIngestFile reported why.
+        rc = vtz_open_memory(pabyData, static_cast<size_t>(nSize), nullptr,
+                             &hFile);
+        VSIFree(pabyData);
+    }
+    else
+    {
+        rc = vtz_open_path(pszFilename, nullptr, &hFile);
+    }
+    if (rc != VTZ_OK || hFile == nullptr)
+    {
+        ReportVtzError();
+        return nullptr;
+    }
+
+    auto poDS = std::make_unique<VTZDataset>();
+    poDS->m_hFile = hFile;
+    if (vtz_get_info(hFile, &poDS->m_sInfo) != VTZ_OK)
+    {
+        ReportVtzError(pszFilename);
+        return nullptr;
+    }
+    const VtzInfo &sInfo = poDS->m_sInfo;
+    if (!VtzToGDALType(sInfo.sample_type, &poDS->m_eDT))
+    {
+        CPLError(CE_Failure, CPLE_NotSupported, "vtz: %s: sample type %d",
+                 pszFilename, static_cast<int>(sInfo.sample_type));
+        return nullptr;
+    }
+    poDS->m_nDTSize = GDALGetDataTypeSizeBytes(poDS->m_eDT);
+    if (sInfo.width > INT_MAX || sInfo.height > INT_MAX ||
+        !GDALCheckDatasetDimensions(static_cast<int>(sInfo.width),
+                                    static_cast<int>(sInfo.height)))
+        return nullptr;
+    poDS->nRasterXSize = static_cast<int>(sInfo.width);
+    poDS->nRasterYSize = static_cast<int>(sInfo.height);
+
+    int nBlockX, nBlockY;
+    if (sInfo.tiled)
+    {
+        if (sInfo.tile_width == 0 || sInfo.tile_height == 0 ||
+            sInfo.tile_width > sInfo.width || sInfo.tile_height > sInfo.height)
+        {
+            CPLError(CE_Failure, CPLE_AppDefined,
+                     "vtz: %s: tile size %ux%u does not fit the raster",
+                     pszFilename, sInfo.tile_width, sInfo.tile_height);
+            return nullptr;
+        }
+        nBlockX = static_cast<int>(sInfo.tile_width);
+        nBlockY = static_cast<int>(sInfo.tile_height);
+    }
+    else
+    {
+        // Strips of about 1 MiB of full rows, served from the whole-raster cache.
+        const size_t nRowBytes =
+            static_cast<size_t>(poDS->nRasterXSize) * poDS->m_nDTSize;
+        nBlockX = poDS->nRasterXSize;
+        nBlockY = static_cast<int>(std::max<size_t>(
+            1, std::min<size_t>(poDS->nRasterYSize, (1 << 20) / nRowBytes)));
+    }
+    poDS->SetBand(1, new VTZRasterBand(poDS.get(), nBlockX, nBlockY));
+
+    // Georeferencing. A CRS text from the file may be anything SetFromUserInput takes:
+    // refuse the forms that read files or the network.
+    if (sInfo.has_geotransform)
+        poDS->GDALDataset::SetMetadataItem(
+            "AREA_OR_POINT", sInfo.pixel_is_point ? "Point" : "Area");
+    const std::string osCRS = TwoCallText(
+        [hFile](char *buf, size_t cap) { return vtz_get_crs(hFile, buf, cap); });
+    if (!osCRS.empty())
+    {
+        poDS->m_oSRS.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+        if (poDS->m_oSRS.SetFromUserInput(
+                osCRS.c_str(),
+                OGRSpatialReference::SET_FROM_USER_INPUT_LIMITATIONS_get()) !=
+            OGRERR_NONE)
+        {
+            CPLError(CE_Warning, CPLE_AppDefined,
+                     "vtz: %s: cannot interpret the CRS '%s'; ignored",
+                     pszFilename, osCRS.c_str());
+            poDS->m_oSRS.Clear();
+        }
+    }
+    if (sInfo.epsg != 0)
+    {
+        // The EPSG code's definition from PROJ's database (with its name, usage and
+        // datum ensemble, as a GeoTIFF of the same code shows it) when it is the same
+        // CRS as the file's text, or the file has none GDAL understands.
+        OGRSpatialReference oEPSG;
+        oEPSG.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+        CPLPushErrorHandler(CPLQuietErrorHandler);
+        const bool bEPSG =
+            oEPSG.importFromEPSG(static_cast<int>(sInfo.epsg)) == OGRERR_NONE;
+        CPLPopErrorHandler();
+        if (bEPSG && (poDS->m_oSRS.IsEmpty() || oEPSG.IsSame(&poDS->m_oSRS)))
+            poDS->m_oSRS = oEPSG;
+    }
+
+    const std::string osMD =
+        TwoCallText([hFile](char *buf, size_t cap)
+                    { return vtz_get_gdal_metadata(hFile, buf, cap); });
+    if (!osMD.empty())
+        poDS->ApplyGDALMetadata(osMD.c_str());
+
+    // How the file is coded, where GTiff reports LERC's.
+    poDS->GDALDataset::SetMetadataItem("COMPRESSION", "VTZ", "IMAGE_STRUCTURE");
+    poDS->GDALDataset::SetMetadataItem(
+        "MAX_Z_ERROR", CPLSPrintf("%.17g", sInfo.max_error), "IMAGE_STRUCTURE");
+    poDS->GDALDataset::SetMetadataItem(
+        "VTZ_TILED", sInfo.tiled ? "YES" : "NO", "IMAGE_STRUCTURE");
+    poDS->GDALDataset::SetMetadataItem("VTZ_VERSION", CPLSPrintf("%d", nVersion),
+                                       "IMAGE_STRUCTURE");
+
+    // PAM (.aux.xml) and external overviews (.ovr).
+    poDS->SetDescription(pszFilename);
+    poDS->TryLoadXML(poOpenInfo->GetSiblingFiles());
+    poDS->oOvManager.Initialize(poDS.get(), pszFilename,
+                                poOpenInfo->GetSiblingFiles());
+    return poDS.release();
+}
+
+/************************************************************************/
+/*                              CreateCopy                              */
+/************************************************************************/
+
+namespace
+{
+
+void AppendItem(CPLXMLNode *psRoot, const char *pszKey, const char *pszValue,
+                bool bBand, const char *pszRole, const char *pszDomain)
+{
+    CPLXMLNode *psItem = CPLCreateXMLNode(nullptr, CXT_Element, "Item");
+    CPLAddXMLAttributeAndValue(psItem, "name", pszKey);
+    if (bBand)
+        CPLAddXMLAttributeAndValue(psItem, "sample", "0");
+    if (pszRole)
+        CPLAddXMLAttributeAndValue(psItem, "role", pszRole);
+    if (pszDomain && pszDomain[0])
+        CPLAddXMLAttributeAndValue(psItem, "domain", pszDomain);
+    CPLCreateXMLNode(psItem, CXT_Text, pszValue);
+    CPLAddXMLChild(psRoot, psItem);
+}
+
+/// The metadata items of every copied domain of an object (AREA_OR_POINT excluded: the
+/// file carries it as pixel_is_point).
+void AppendMetadata(CPLXMLNode *psRoot, GDALMajorObject *poObj, bool bBand)
+{
+    char **papszDomains = poObj->GetMetadataDomainList();
+    // The default domain first, then the others in their order.
+    CPLStringList aosDomains;
+    aosDomains.AddString("");
+    for (char **p = papszDomains; p && *p; ++p)
+        if ((*p)[0] != '\0' && IsCopiedDomain(*p))
+            aosDomains.AddString(*p);
+    CSLDestroy(papszDomains);
+    for (int i = 0; i < aosDomains.size(); ++i)
+    {
+        const char *pszDomain = aosDomains[i];
+        char **papszMD = poObj->GetMetadata(pszDomain);
+        for (char **p = papszMD; p && *p; ++p)
+        {
+            char *pszKey = nullptr;
+            const char *pszValue = CPLParseNameValue(*p, &pszKey);
+            if (pszKey && pszValue &&
+                !(pszDomain[0] == '\0' && !bBand &&
+                  EQUAL(pszKey, "AREA_OR_POINT")))
+                AppendItem(psRoot, pszKey, pszValue, bBand, nullptr, pszDomain);
+            CPLFree(pszKey);
+        }
+    }
+}
+
+/// The GDAL_METADATA XML of a dataset and its band 1, as GTiff writes it (empty: none).
+std::string BuildGDALMetadata(GDALDataset *poSrcDS)
+{
+    CPLXMLNode *psRoot = CPLCreateXMLNode(nullptr, CXT_Element, "GDALMetadata");
+    AppendMetadata(psRoot, poSrcDS, false);
+    GDALRasterBand *poBand = poSrcDS->GetRasterBand(1);
+    AppendMetadata(psRoot, poBand, true);
+    int bHas = FALSE;
+    const double dfOffset = poBand->GetOffset(&bHas);
+    if (bHas && dfOffset != 0.0)
+        AppendItem(psRoot, "OFFSET", CPLSPrintf("%.17g", dfOffset), true,
+                   "offset", nullptr);
+    bHas = FALSE;
+    const double dfScale = poBand->GetScale(&bHas);
+    if (bHas && dfScale != 1.0)
+        AppendItem(psRoot, "SCALE", CPLSPrintf("%.17g", dfScale), true, "scale",
+                   nullptr);
+    const char *pszUnit = poBand->GetUnitType();
+    if (pszUnit && pszUnit[0])
+        AppendItem(psRoot, "UNITTYPE", pszUnit, true, "unittype", nullptr);
+    const char *pszDesc = poBand->GetDescription();
+    if (pszDesc && pszDesc[0])
+        AppendItem(psRoot, "DESCRIPTION", pszDesc, true, "description", nullptr);
+    std::string osXML;
+    if (psRoot->psChild)
+    {
+        char *pszXML = CPLSerializeXMLTree(psRoot);
+        osXML = pszXML;
+        CPLFree(pszXML);
+    }
+    CPLDestroyXMLNode(psRoot);
+    return osXML;
+}
+
+/// A creation option that must be an integer within [nMin, nMax].
+bool IntOption(char **papszOptions, const char *pszName, int nMin, int nMax,
+               int *pnOut)
+{
+    const char *pszValue = CSLFetchNameValue(papszOptions, pszName);
+    if (pszValue == nullptr)
+        return true;
+    char *pszEnd = nullptr;
+    const long n = strtol(pszValue, &pszEnd, 10);
+    if (pszEnd == pszValue || *pszEnd != '\0' || n < nMin || n > nMax)
+    {
+        CPLError(CE_Failure, CPLE_IllegalArg,
+                 "vtz: %s=%s is not an integer in %d..%d", pszName, pszValue,
+                 nMin, nMax);
+        return false;
+    }
+    *pnOut = static_cast<int>(n);
+    return true;
+}
+
+/// Fill the encode options from the creation options; false (reported) when one is bad.
+bool ParseCreationOptions(char **papszOptions, VtzEncodeOptions *psOpts,
+                          std::string *posMethod)
+{
+    const char *pszMaxErr = CSLFetchNameValue(papszOptions, "MAX_Z_ERROR");
+    const char *pszLossless = CSLFetchNameValue(papszOptions, "LOSSLESS");
+    const bool bLossless =
+        pszLossless ? CPLTestBool(pszLossless) : pszMaxErr == nullptr;
+    if (bLossless && pszMaxErr)
+    {
+        CPLError(CE_Failure, CPLE_IllegalArg,
+                 "vtz: LOSSLESS=YES and MAX_Z_ERROR=%s contradict each other",
+                 pszMaxErr);
+        return false;
+    }
+    if (!bLossless && pszMaxErr == nullptr)
+    {
+        CPLError(CE_Failure, CPLE_IllegalArg,
+                 "vtz: LOSSLESS=NO needs a MAX_Z_ERROR (data units, or N%%)");
+        return false;
+    }
+    if (pszMaxErr)
+    {
+        std::string osValue(pszMaxErr);
+        if (!osValue.empty() && osValue.back() == '%')
+        {
+            psOpts->max_error_percent = 1;
+            osValue.pop_back();
+        }
+        char *pszEnd = nullptr;
+        const double dfErr = CPLStrtod(osValue.c_str(), &pszEnd);
+        if (osValue.empty() || *pszEnd != '\0' || !(dfErr >= 0) ||
+            !std::isfinite(dfErr))
+        {
+            CPLError(CE_Failure, CPLE_IllegalArg,
+                     "vtz: MAX_Z_ERROR=%s is not a bound >= 0 (data units, or "
+                     "N%%)",
+                     pszMaxErr);
+            return false;
+        }
+        psOpts->max_error = dfErr;
+    }
+
+    if (const char *pszMethod = CSLFetchNameValue(papszOptions, "METHOD"))
+        *posMethod = pszMethod;
+    int nEffort = 0;
+    if (!IntOption(papszOptions, "EFFORT", 1, 9, &nEffort))
+        return false;
+    psOpts->effort = nEffort;
+
+    const char *pszTile = CSLFetchNameValue(papszOptions, "TILE");
+    if (pszTile && (EQUAL(pszTile, "NONE") || EQUAL(pszTile, "NO")))
+        psOpts->tile = -1;
+    else if (pszTile && !EQUAL(pszTile, "DEFAULT"))
+    {
+        int nTile = 0;
+        if (!IntOption(papszOptions, "TILE", 64, INT_MAX, &nTile))
+            return false;
+        psOpts->tile = nTile;
+    }
+
+    const char *pszThreads = CSLFetchNameValue(papszOptions, "THREADS");
+    if (pszThreads == nullptr)
+        pszThreads = CPLGetConfigOption("GDAL_NUM_THREADS", "ALL_CPUS");
+    if (EQUAL(pszThreads, "ALL_CPUS"))
+        psOpts->threads = 0;
+    else
+    {
+        char *pszEnd = nullptr;
+        const long n = strtol(pszThreads, &pszEnd, 10);
+        if (pszEnd == pszThreads || *pszEnd != '\0' || n < 1 || n > 65536)
+        {
+            CPLError(CE_Failure, CPLE_IllegalArg,
+                     "vtz: THREADS=%s is not a count >= 1 or ALL_CPUS",
+                     pszThreads);
+            return false;
+        }
+        psOpts->threads = static_cast<uint32_t>(n);
+    }
+    return true;
+}
+
+}  // namespace
+
+GDALDataset *VTZDataset::CreateCopy(const char *pszFilename, GDALDataset *poSrcDS,
+                                    int bStrict, char **papszOptions,
+                                    GDALProgressFunc pfnProgress,
+                                    void *pProgressData)
+{
+    if (pfnProgress == nullptr)
+        pfnProgress = GDALDummyProgress;
+    if (poSrcDS->GetRasterCount() != 1)
+    {
+        CPLError(CE_Failure, CPLE_NotSupported,
+                 "vtz: a .vtz raster holds one band; the source has %d (pick one "
+                 "with gdal_translate -b N)",
+                 poSrcDS->GetRasterCount());
+        return nullptr;
+    }
+    GDALRasterBand *poBand = poSrcDS->GetRasterBand(1);
+    GDALDataType eDT = poBand->GetRasterDataType();
+    if (GDALToVtzType(eDT) < 0)
+    {
+        if (bStrict || GDALDataTypeIsComplex(eDT))
+        {
+            CPLError(CE_Failure, CPLE_NotSupported,
+                     "vtz: data type %s is not one vtz stores (Byte, Int16, "
+                     "UInt16, Int32, Float32, Float64)",
+                     GDALGetDataTypeName(eDT));
+            return nullptr;
+        }
+        CPLError(CE_Warning, CPLE_AppDefined,
+                 "vtz: data type %s stored as Float64", GDALGetDataTypeName(eDT));
+        eDT = GDT_Float64;
+    }
+
+    VtzEncodeOptions sOpts = vtz_encode_options_init();
+    std::string osMethod;
+    if (!ParseCreationOptions(papszOptions, &sOpts, &osMethod))
+        return nullptr;
+    if (!osMethod.empty())
+        sOpts.method = osMethod.c_str();
+
+    // Georeferencing, nodata, metadata.
+    double adfGT[6];
+    if (poSrcDS->GetGeoTransform(adfGT) == CE_None)
+    {
+        sOpts.has_geotransform = 1;
+        memcpy(sOpts.geotransform, adfGT, sizeof(adfGT));
+        const char *pszAoP = poSrcDS->GetMetadataItem("AREA_OR_POINT");
+        sOpts.pixel_is_point = pszAoP && EQUAL(pszAoP, "Point");
+    }
+    std::string osWKT;
+    if (const OGRSpatialReference *poSRS = poSrcDS->GetSpatialRef())
+    {
+        // An EPSG code alone when the CRS is exactly that code's; else the WKT (WKT1
+        // when it can hold the CRS, else WKT2), with the code when one is known.
+        OGRSpatialReference oSRS(*poSRS);
+        if (oSRS.GetAuthorityName(nullptr) == nullptr)
+            oSRS.AutoIdentifyEPSG();
+        const char *pszAuth = oSRS.GetAuthorityName(nullptr);
+        const char *pszCode = oSRS.GetAuthorityCode(nullptr);
+        bool bCodeOnly = false;
+        if (pszAuth && pszCode && EQUAL(pszAuth, "EPSG"))
+        {
+            sOpts.epsg = static_cast<uint32_t>(atoi(pszCode));
+            OGRSpatialReference oRef;
+            bCodeOnly = oRef.importFromEPSG(static_cast<int>(sOpts.epsg)) ==
+                            OGRERR_NONE &&
+                        oRef.IsSame(poSRS);
+        }
+        if (!bCodeOnly)
+        {
+            char *pszWKT = nullptr;
+            const char *apszWKT1[] = {"FORMAT=WKT1", nullptr};
+            const char *apszWKT2[] = {"FORMAT=WKT2_2019", nullptr};
+            CPLPushErrorHandler(CPLQuietErrorHandler);
+            if (poSRS->exportToWkt(&pszWKT, apszWKT1) != OGRERR_NONE)
+            {
+                CPLFree(pszWKT);
+                pszWKT = nullptr;
+                poSRS->exportToWkt(&pszWKT, apszWKT2);
+            }
+            CPLPopErrorHandler();
+            if (pszWKT)
+                osWKT = pszWKT;
+            CPLFree(pszWKT);
+            if (!osWKT.empty())
+                sOpts.crs_wkt = osWKT.c_str();
+        }
+    }
+    int bHasNoData = FALSE;
+    const double dfNoData = poBand->GetNoDataValue(&bHasNoData);
+    if (bHasNoData)
+    {
+        sOpts.has_nodata = 1;
+        sOpts.nodata = dfNoData;
+    }
+    const std::string osMD = BuildGDALMetadata(poSrcDS);
+    if (!osMD.empty())
+        sOpts.gdal_metadata = osMD.c_str();
+
+    // Read the band whole (half of the progress), then encode.
+    const int nXSize = poSrcDS->GetRasterXSize();
+    const int nYSize = poSrcDS->GetRasterYSize();
+    const int nDTSize = GDALGetDataTypeSizeBytes(eDT);
+    void *pData = VSI_MALLOC3_VERBOSE(nXSize, nYSize, nDTSize);
+    if (pData == nullptr)
+        return nullptr;
+    void *pScaled = GDALCreateScaledProgress(0.0, 0.5, pfnProgress, pProgressData);
+    GDALRasterIOExtraArg sExtra;
+    INIT_RASTERIO_EXTRA_ARG(sExtra);
+    sExtra.pfnProgress = GDALScaledProgress;
+    sExtra.pProgressData = pScaled;
+    const CPLErr eErr =
+        poBand->RasterIO(GF_Read, 0, 0, nXSize, nYSize, pData, nXSize, nYSize,
+                         eDT, 0, 0, &sExtra);
+    GDALDestroyScaledProgress(pScaled);
+    if (eErr != CE_None)
+    {
+        VSIFree(pData);
+        return nullptr;
+    }
+    if (!pfnProgress(0.5, "encoding", pProgressData))
+    {
+        VSIFree(pData);
+        CPLError(CE_Failure, CPLE_UserInterrupt, "User terminated");
+        return nullptr;
+    }
+
+    int rc;
+    if (STARTS_WITH(pszFilename, "/vsi"))
+    {
+        // A /vsi destination: encode in memory, then write through VSI.
+        uint8_t *pabyOut = nullptr;
+        size_t nOut = 0;
+        rc = vtz_encode(pData, GDALToVtzType(eDT), static_cast<uint32_t>(nXSize),
+                        static_cast<uint32_t>(nYSize), &sOpts, &pabyOut, &nOut);
+        if (rc == VTZ_OK)
+        {
+            VSILFILE *fp = VSIFOpenL(pszFilename, "wb");
+            const bool bOK = fp != nullptr &&
+                             VSIFWriteL(pabyOut, 1, nOut, fp) == nOut;
+            const bool bClosed = fp == nullptr || VSIFCloseL(fp) == 0;
+            vtz_free_bytes(pabyOut, nOut);
+            if (!bOK || !bClosed)
+            {
+                VSIFree(pData);
+                CPLError(CE_Failure, CPLE_FileIO, "vtz: cannot write %s",
+                         pszFilename);
+                return nullptr;
+            }
+        }
+    }
+    else
+    {
+        rc = vtz_encode_to_path(pData, GDALToVtzType(eDT),
+                                static_cast<uint32_t>(nXSize),
+                                static_cast<uint32_t>(nYSize), &sOpts, pszFilename);
+    }
+    VSIFree(pData);
+    if (rc != VTZ_OK)
+    {
+        ReportVtzError(pszFilename);
+        return nullptr;
+    }
+    pfnProgress(1.0, "", pProgressData);
+
+    GDALOpenInfo oOpenInfo(pszFilename, GA_ReadOnly);
+    return Open(&oOpenInfo);
+}
+
+/************************************************************************/
+/*                          GDALRegister_VTZ                            */
+/************************************************************************/
+
+// Both are exported (the plugin is built with -fvisibility=hidden): GDAL's plugin loader
+// looks for GDALRegister_VTZ (from the file name gdal_VTZ.so), then GDALRegisterMe.
+extern "C" CPL_DLL void GDALRegister_VTZ();
+
+void GDALRegister_VTZ()
+{
+    if (!GDAL_CHECK_VERSION("VTZ"))
+        return;
+    if (GDALGetDriverByName("VTZ") != nullptr)
+        return;
+
+    GDALDriver *poDriver = new GDALDriver();
+    poDriver->SetDescription("VTZ");
+    poDriver->SetMetadataItem(GDAL_DCAP_RASTER, "YES");
+    poDriver->SetMetadataItem(GDAL_DMD_LONGNAME, "vtz elevation codec");
+    poDriver->SetMetadataItem(GDAL_DMD_EXTENSION, "vtz");
+    poDriver->SetMetadataItem(GDAL_DMD_HELPTOPIC, "capi/gdal/vtzdataset.cpp");
+    poDriver->SetMetadataItem(GDAL_DMD_CREATIONDATATYPES,
+                              "Byte Int16 UInt16 Int32 Float32 Float64");
+    poDriver->SetMetadataItem(GDAL_DCAP_VIRTUALIO, "YES");
+    poDriver->SetMetadataItem(
+        GDAL_DMD_CREATIONOPTIONLIST,
+        "<CreationOptionList>"
+        "  <Option name='MAX_Z_ERROR' type='string' description='Bound on every "
+        "valid sample: data units, or N% of the value range (lossy)'/>"
+        "  <Option name='LOSSLESS' type='boolean' description='Store every sample "
+        "exactly (the default when MAX_Z_ERROR is absent)'/>"
+        "  <Option name='METHOD' type='string' description='best, residual, "
+        "sites, grid, haar, fis, or a comma list' default='best'/>"
+        "  <Option name='EFFORT' type='int' min='1' max='9' description='Encoder "
+        "effort' default='5'/>"
+        "  <Option name='TILE' type='string' description='Tile side in samples "
+        "(>= 64), or NONE; default: tiles of 1024 above 4096x4096'/>"
+        "  <Option name='THREADS' type='string' description='Encoder threads, or "
+        "ALL_CPUS' default='ALL_CPUS'/>"
+        "</CreationOptionList>");
+
+    poDriver->pfnIdentify = VTZDataset::Identify;
+    poDriver->pfnOpen = VTZDataset::Open;
+    poDriver->pfnCreateCopy = VTZDataset::CreateCopy;
+    GetGDALDriverManager()->RegisterDriver(poDriver);
+}
+
+/// The entry point GDAL calls when it loads gdal_VTZ.so from GDAL_DRIVER_PATH.
+extern "C" CPL_DLL void GDALRegisterMe()
+{
+    GDALRegister_VTZ();
+}

@@ -1,0 +1,315 @@
+/* The C ABI from C: round trips within the bound, windows equal crops, the golden files
+ * decode to the Rust decoder's samples bit for bit, and bad input gives a code and a
+ * message, never a crash. Built and run by capi/run-c-test.sh (CI: .ci/run).
+ *
+ *   capi_test GOLDEN_DIR TMP_DIR
+ */
+#include "vtz.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int failures = 0;
+static int checks = 0;
+
+#define CHECK(cond, ...)                                                   \
+  do {                                                                     \
+    checks++;                                                              \
+    if (!(cond)) {                                                         \
+      failures++;                                                          \
+      fprintf(stderr, "FAIL %s:%d: ", __FILE__, __LINE__);                 \
+      fprintf(stderr, __VA_ARGS__);                                        \
+      fprintf(stderr, " (last error: %s)\n", vtz_last_error());           \
+    }                                                                      \
+  } while (0)
+
+static unsigned char *read_file(const char *path, size_t *len) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return NULL;
+  fseek(f, 0, SEEK_END);
+  long n = ftell(f);
+  fseek(f, 0, SEEK_SET);
+  unsigned char *b = malloc(n > 0 ? (size_t)n : 1);
+  if (b && fread(b, 1, (size_t)n, f) != (size_t)n) {
+    free(b);
+    b = NULL;
+  }
+  fclose(f);
+  *len = (size_t)n;
+  return b;
+}
+
+/* A terrain of W x H int16 samples with a hole of nodata. */
+enum { W = 300, H = 200 };
+static const int16_t NODATA = -32768;
+
+static void make_terrain(int16_t *z) {
+  for (int y = 0; y < H; y++)
+    for (int x = 0; x < W; x++) {
+      double v = 800.0 + 400.0 * sin(x * 0.031) * cos(y * 0.047) + 3.0 * ((x * 7 + y * 13) % 11);
+      int hole = (x - 60) * (x - 60) + (y - 50) * (y - 50) < 15 * 15;
+      z[y * W + x] = hole ? NODATA : (int16_t)lround(v);
+    }
+}
+
+static void test_round_trip_and_windows(void) {
+  static int16_t src[W * H], dec[W * H], win[40 * 30];
+  static double wide[W * H];
+  make_terrain(src);
+  VtzEncodeOptions o = vtz_encode_options_init();
+  o.max_error = 1.0;
+  o.has_nodata = 1;
+  o.nodata = NODATA;
+  o.has_geotransform = 1;
+  double gt[6] = {-159.8, 1.0 / 1200, 0, 22.3, 0, -1.0 / 1200};
+  memcpy(o.geotransform, gt, sizeof gt);
+  o.epsg = 4326;
+  o.gdal_metadata = "<GDALMetadata><Item name=\"UNITTYPE\" sample=\"0\" role=\"unittype\">m</Item></GDALMetadata>";
+  uint8_t *bytes = NULL;
+  size_t len = 0;
+  int rc = vtz_encode(src, VTZ_I16, W, H, &o, &bytes, &len);
+  CHECK(rc == VTZ_OK && bytes && len > 0, "encode: rc %d", rc);
+  if (rc != VTZ_OK) return;
+
+  VtzFile *f = NULL;
+  rc = vtz_open_memory(bytes, len, NULL, &f);
+  CHECK(rc == VTZ_OK && f, "open_memory: rc %d", rc);
+  if (!f) return;
+  VtzInfo info;
+  CHECK(vtz_get_info(f, &info) == VTZ_OK, "get_info");
+  CHECK(info.width == W && info.height == H, "size %ux%u", info.width, info.height);
+  CHECK(info.sample_type == VTZ_I16, "sample type %d", info.sample_type);
+  CHECK(info.has_nodata && info.nodata == NODATA, "nodata");
+  CHECK(info.has_geotransform && memcmp(info.geotransform, gt, sizeof gt) == 0, "geotransform");
+  CHECK(info.epsg == 4326, "epsg %u", info.epsg);
+  CHECK(info.max_error > 0 && info.max_error <= 1.0, "stored max error %g", info.max_error);
+  CHECK(info.tiled == 0 && info.tile_cols == 1, "untiled");
+  CHECK(info.file_bytes == len, "file bytes");
+  char crs[8192];
+  size_t need = vtz_get_crs(f, NULL, 0);
+  CHECK(need > 1 && need <= sizeof crs, "crs length %zu", need);
+  CHECK(vtz_get_crs(f, crs, sizeof crs) == need && strstr(crs, "WGS 84"), "crs text: %.60s", crs);
+  char meta[512];
+  /* Lossy: the metadata comes back without statistics, the rest byte for byte. */
+  CHECK(vtz_get_gdal_metadata(f, meta, sizeof meta) == strlen(o.gdal_metadata) + 1 &&
+            strcmp(meta, o.gdal_metadata) == 0,
+        "gdal metadata");
+
+  rc = vtz_read(f, 0, 0, W, H, VTZ_I16, dec, sizeof dec, 0);
+  CHECK(rc == VTZ_OK, "read: rc %d", rc);
+  int worst = 0, nodata_ok = 1;
+  for (int i = 0; i < W * H; i++) {
+    if (src[i] == NODATA) {
+      nodata_ok &= dec[i] == NODATA;
+    } else {
+      int d = abs((int)dec[i] - (int)src[i]);
+      if (d > worst) worst = d;
+    }
+  }
+  CHECK(worst <= 1, "max error %d over the bound 1", worst);
+  CHECK(nodata_ok, "nodata samples decode as nodata");
+
+  /* A window is the crop of the full decode, on 1 and 2 threads. */
+  for (uint32_t threads = 1; threads <= 2; threads++) {
+    rc = vtz_read(f, 37, 41, 40, 30, VTZ_I16, win, sizeof win, threads);
+    CHECK(rc == VTZ_OK, "window read");
+    int same = 1;
+    for (int y = 0; y < 30; y++)
+      for (int x = 0; x < 40; x++) same &= win[y * 40 + x] == dec[(41 + y) * W + 37 + x];
+    CHECK(same, "window (37, 41, 40, 30) on %u threads is the crop", threads);
+  }
+  /* A wider type gets the same values. */
+  CHECK(vtz_read(f, 0, 0, W, H, VTZ_F64, wide, sizeof wide, 0) == VTZ_OK, "read as f64");
+  int same = 1;
+  for (int i = 0; i < W * H; i++) same &= wide[i] == (double)dec[i];
+  CHECK(same, "f64 buffer equals the i16 decode");
+
+  /* Bad requests: codes and messages, nothing written past the buffer. */
+  rc = vtz_read(f, 0, 0, W, H, VTZ_U8, (uint8_t *)dec, W * H, 0);
+  CHECK(rc == VTZ_ERR_INVALID_ARGUMENT && strstr(vtz_last_error(), "u8"), "values that do not fit u8: rc %d", rc);
+  rc = vtz_read(f, 0, 0, W, H, VTZ_I16, dec, sizeof dec - 2, 0);
+  CHECK(rc == VTZ_ERR_INVALID_ARGUMENT, "short buffer: rc %d", rc);
+  rc = vtz_read(f, W - 10, 0, 20, 5, VTZ_I16, win, 20 * 5 * 2, 0);
+  CHECK(rc == VTZ_ERR_INVALID_ARGUMENT, "window outside the raster: rc %d", rc);
+  rc = vtz_read(f, 0, 0, 1, 1, 9, win, 2, 0);
+  CHECK(rc == VTZ_ERR_INVALID_ARGUMENT, "unknown sample type: rc %d", rc);
+  rc = vtz_read(f, 0, 0, 1, 1, VTZ_I16, NULL, 2, 0);
+  CHECK(rc == VTZ_ERR_INVALID_ARGUMENT, "null buffer: rc %d", rc);
+  rc = vtz_read(f, 0, 0, 1, 1, VTZ_I16, win, 2, 0);
+  CHECK(rc == VTZ_OK && strlen(vtz_last_error()) == 0, "a success clears the message");
+  vtz_close(f);
+
+  /* Limits: a raster over max_samples is refused before anything is decoded. */
+  VtzLimits lim = {1000, 0};
+  rc = vtz_open_memory(bytes, len, &lim, &f);
+  CHECK(rc == VTZ_ERR_LIMIT && f == NULL, "limits: rc %d", rc);
+
+  /* Every proper prefix is an error, never a success or a crash. */
+  int prefix_ok = 1;
+  for (size_t n = 0; n < len; n += (n < 64 ? 1 : 97)) {
+    VtzFile *p = NULL;
+    int r = vtz_open_memory(bytes, n, NULL, &p);
+    if (r == VTZ_OK) {
+      r = vtz_read(p, 0, 0, W, H, VTZ_I16, dec, sizeof dec, 1);
+      vtz_close(p);
+    }
+    if (r == VTZ_OK || r == VTZ_ERR_PANIC) {
+      prefix_ok = 0;
+      fprintf(stderr, "prefix of %zu bytes: rc %d\n", n, r);
+      break;
+    }
+  }
+  CHECK(prefix_ok, "every proper prefix is rejected");
+  /* Flipped bytes: an error or a decode, never a panic. */
+  int flips_ok = 1;
+  uint8_t *copy = malloc(len);
+  for (size_t k = 0; k < 300 && copy; k++) {
+    memcpy(copy, bytes, len);
+    size_t at = (k * 7919) % len;
+    copy[at] ^= (uint8_t)(1u << (k % 8));
+    VtzFile *p = NULL;
+    int r = vtz_open_memory(copy, len, NULL, &p);
+    if (r == VTZ_OK) {
+      r = vtz_read(p, 0, 0, W, H, VTZ_I16, dec, sizeof dec, 1);
+      vtz_close(p);
+    }
+    if (r == VTZ_ERR_PANIC) {
+      flips_ok = 0;
+      fprintf(stderr, "flip at %zu: a panic: %s\n", at, vtz_last_error());
+    }
+  }
+  free(copy);
+  CHECK(flips_ok, "flipped bytes never panic");
+  vtz_free_bytes(bytes, len);
+}
+
+static void test_lossless_float_and_tiles(const char *tmp) {
+  static float src[W * H], dec[W * H], win[90 * 70];
+  for (int i = 0; i < W * H; i++) src[i] = (float)(100.0 + 0.37 * (i % W) - 0.11 * (i / W) + 0.001 * (i % 7));
+  src[5] = NAN;
+  src[W * H - 1] = NAN;
+  char path[4096];
+  snprintf(path, sizeof path, "%s/capi_tiled.vtz", tmp);
+  VtzEncodeOptions o = vtz_encode_options_init(); /* lossless */
+  o.tile = 64;
+  o.method = "residual";
+  o.effort = 1;
+  int rc = vtz_encode_to_path(src, VTZ_F32, W, H, &o, path);
+  CHECK(rc == VTZ_OK, "encode_to_path: rc %d", rc);
+  VtzFile *f = NULL;
+  rc = vtz_open_path(path, NULL, &f);
+  CHECK(rc == VTZ_OK && f, "open_path: rc %d", rc);
+  if (!f) return;
+  VtzInfo info;
+  vtz_get_info(f, &info);
+  CHECK(info.tiled == 1 && info.tile_width <= 64 && info.tile_height <= 64 && info.tile_cols == 5 &&
+            info.tile_rows == 4,
+        "tile grid %ux%u of %ux%u", info.tile_cols, info.tile_rows, info.tile_width, info.tile_height);
+  CHECK(info.max_error == 0, "lossless: stored max error %g", info.max_error);
+  CHECK(vtz_read(f, 0, 0, W, H, VTZ_F32, dec, sizeof dec, 2) == VTZ_OK, "read tiled");
+  CHECK(memcmp(src, dec, sizeof src) == 0, "lossless f32 round trip, NaNs kept, bit for bit");
+  CHECK(vtz_read(f, 50, 60, 90, 70, VTZ_F32, win, sizeof win, 1) == VTZ_OK, "window across tiles");
+  int same = 1;
+  for (int y = 0; y < 70; y++) same &= memcmp(&win[y * 90], &dec[(60 + y) * W + 50], 90 * 4) == 0;
+  CHECK(same, "a window across tile edges is the crop");
+  vtz_close(f);
+
+  /* Bad options and paths. */
+  o.effort = 10;
+  CHECK(vtz_encode_to_path(src, VTZ_F32, W, H, &o, path) == VTZ_ERR_INVALID_ARGUMENT, "effort 10");
+  o = vtz_encode_options_init();
+  o.method = "no-such-method";
+  CHECK(vtz_encode_to_path(src, VTZ_F32, W, H, &o, path) == VTZ_ERR_INVALID_ARGUMENT, "unknown method");
+  o = vtz_encode_options_init();
+  o.has_geotransform = 1;
+  o.geotransform[2] = 0.5;
+  CHECK(vtz_encode_to_path(src, VTZ_F32, W, H, &o, path) == VTZ_ERR_UNSUPPORTED, "rotated geotransform");
+  f = (VtzFile *)1;
+  rc = vtz_open_path("/nonexistent/x.vtz", NULL, &f);
+  CHECK(rc == VTZ_ERR_IO && f == NULL && strstr(vtz_last_error(), "/nonexistent/x.vtz"),
+        "missing file: rc %d, message names it", rc);
+  CHECK(vtz_open_path(NULL, NULL, &f) == VTZ_ERR_INVALID_ARGUMENT, "null path");
+  CHECK(vtz_open_memory((const uint8_t *)"not a vtz file at all", 21, NULL, &f) == VTZ_ERR_CORRUPT,
+        "garbage");
+  CHECK(vtz_get_info(NULL, &info) == VTZ_ERR_INVALID_ARGUMENT, "null file");
+  vtz_close(NULL);
+}
+
+/* Two threads decoding one handle take turns and get the same bits. */
+struct job {
+  VtzFile *f;
+  uint32_t w, h;
+  float *out;
+  int rc;
+};
+static void *run(void *p) {
+  struct job *j = p;
+  j->rc = vtz_read(j->f, 0, 0, j->w, j->h, VTZ_F32, j->out, (size_t)j->w * j->h * 4, 1);
+  return NULL;
+}
+
+/* Each golden file decodes to the Rust decoder's samples (NAME.expected.f32). */
+static void test_golden(const char *dir) {
+  const char *names[] = {"v1_kauai_coast_flat", "v1_kauai_coast_flat_blocks", "v1_kauai_crop_fis",
+                         "v1_kauai_crop_gdalmeta", "v1_kauai_crop_grid", "v1_kauai_crop_haar",
+                         "v1_kauai_crop_residual", "v1_kauai_crop_residual_exceptions",
+                         "v1_kauai_crop_residual_fast", "v1_kauai_crop_residual_fast_tight",
+                         "v1_kauai_crop_residual_lossy", "v1_kauai_crop_residual_tight",
+                         "v1_kauai_crop_sites", "v2_kauai_tiles"};
+  for (size_t k = 0; k < sizeof names / sizeof *names; k++) {
+    char p[4096], e[4096];
+    snprintf(p, sizeof p, "%s/%s.vtz", dir, names[k]);
+    snprintf(e, sizeof e, "%s/%s.expected.f32", dir, names[k]);
+    size_t elen = 0;
+    unsigned char *expected = read_file(e, &elen);
+    CHECK(expected != NULL, "%s is missing", e);
+    VtzFile *f = NULL;
+    int rc = vtz_open_path(p, NULL, &f);
+    CHECK(rc == VTZ_OK, "%s: open rc %d", names[k], rc);
+    if (!f || !expected) {
+      free(expected);
+      continue;
+    }
+    VtzInfo info;
+    vtz_get_info(f, &info);
+    size_t n = (size_t)info.width * info.height;
+    CHECK(n * 4 == elen, "%s: %zu samples, expected file %zu bytes", names[k], n, elen);
+    float *a = malloc(n * 4), *b = malloc(n * 4);
+    struct job j1 = {f, info.width, info.height, a, -1}, j2 = {f, info.width, info.height, b, -1};
+    pthread_t t1, t2;
+    pthread_create(&t1, NULL, run, &j1);
+    pthread_create(&t2, NULL, run, &j2);
+    pthread_join(t1, NULL);
+    pthread_join(t2, NULL);
+    CHECK(j1.rc == VTZ_OK && j2.rc == VTZ_OK, "%s: decode rc %d %d", names[k], j1.rc, j2.rc);
+    CHECK(n * 4 == elen && memcmp(a, expected, elen) == 0, "%s: samples equal the Rust decoder's", names[k]);
+    CHECK(memcmp(a, b, n * 4) == 0, "%s: two threads on one handle, same bits", names[k]);
+    free(a);
+    free(b);
+    free(expected);
+    vtz_close(f);
+  }
+  /* A point set is not a raster. */
+  char p[4096];
+  snprintf(p, sizeof p, "%s/v3_points.vtz", dir);
+  VtzFile *f = NULL;
+  int rc = vtz_open_path(p, NULL, &f);
+  CHECK(rc == VTZ_ERR_UNSUPPORTED && f == NULL, "a point set: rc %d", rc);
+  if (f) vtz_close(f);
+}
+
+int main(int argc, char **argv) {
+  if (argc != 3) {
+    fprintf(stderr, "usage: capi_test GOLDEN_DIR TMP_DIR\n");
+    return 2;
+  }
+  CHECK(strlen(vtz_version()) > 0, "version");
+  test_round_trip_and_windows();
+  test_lossless_float_and_tiles(argv[2]);
+  test_golden(argv[1]);
+  printf("capi_test (vtz %s): %d checks, %d failed\n", vtz_version(), checks, failures);
+  return failures ? 1 : 0;
+}
