@@ -57,8 +57,8 @@ pub use codec::terrain::{TerrainLevel, TerrainReport, TerrainRequest, write_terr
 pub use codec::{
     DEFAULT_TILE, DecodeOptions, Decoder, EncodeOptions, EncodeReport, Encoder, FileInfo, Sample,
     Scale, SectionChoice, SectionInfo, TileInfo, TilesInfo, Verified, decode, decode_from,
-    decode_with, encode, encode_progress, encode_report, encode_stream, info, read_path,
-    tile_count, verify_points, write_path,
+    decode_with, encode, encode_progress, encode_report, encode_stream, info, on_threads,
+    read_path, tile_count, verify_points, write_path,
 };
 pub use container::Limits;
 pub use error::{Error, Result};

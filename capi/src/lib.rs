@@ -15,13 +15,11 @@
 //! this file by cbindgen (`tests/header.rs` fails when it is stale).
 
 use std::cell::RefCell;
-use std::collections::HashMap;
 use std::ffi::{CStr, CString, c_char};
 use std::fs::File;
 use std::io::{BufReader, Cursor, Read, Seek};
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::PathBuf;
-use std::rc::Rc;
 use std::sync::Mutex;
 use vtz::{
     Decoder, EncodeOptions, Error, ErrorBound, FileInfo, Georef, Limits, Method, Raster,
@@ -221,31 +219,6 @@ fn null(what: &str) -> Error {
     Error::invalid(format!("{what} is a null pointer"))
 }
 
-/// Run `f` on a pool of `threads` threads (0: the global pool), kept per thread count.
-fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> vtz::Result<T> {
-    if threads == 0 {
-        return Ok(f());
-    }
-    thread_local! {
-        static POOLS: RefCell<HashMap<usize, Rc<rayon::ThreadPool>>> = RefCell::new(HashMap::new());
-    }
-    let pool = POOLS.with(|p| -> vtz::Result<Rc<rayon::ThreadPool>> {
-        let mut pools = p.borrow_mut();
-        if let Some(pool) = pools.get(&threads) {
-            return Ok(pool.clone());
-        }
-        let pool = Rc::new(
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .map_err(|e| Error::invalid(format!("cannot start {threads} threads: {e}")))?,
-        );
-        pools.insert(threads, pool.clone());
-        Ok(pool)
-    })?;
-    Ok(pool.install(f))
-}
-
 fn limits(l: Option<&VtzLimits>) -> Limits {
     let mut out = Limits::default();
     if let Some(l) = l {
@@ -326,6 +299,25 @@ fn open(reader: Box<dyn ReadSeek>, lim: Option<&VtzLimits>) -> vtz::Result<Box<V
     }))
 }
 
+/// An open: `*out` is null until `f` gives the handle, then the handle.
+///
+/// # Safety
+/// `out` is null or writable.
+unsafe fn open_into(
+    out: *mut *mut VtzFile,
+    f: impl FnOnce() -> vtz::Result<Box<VtzFile>>,
+) -> vtz::Result<()> {
+    if out.is_null() {
+        return Err(null("out"));
+    }
+    // SAFETY: not null, writable (the caller's promise).
+    unsafe { *out = std::ptr::null_mut() };
+    let handle = f()?;
+    // SAFETY: as above.
+    unsafe { *out = Box::into_raw(handle) };
+    Ok(())
+}
+
 /// Open the `.vtz` at `path` (UTF-8, NUL-terminated). `limits` may be null (vtz's
 /// defaults). Reads the header and the directory; on success `*out` is a handle for
 /// `vtz_close`, else `*out` is null.
@@ -340,26 +332,22 @@ pub unsafe extern "C" fn vtz_open_path(
     out: *mut *mut VtzFile,
 ) -> i32 {
     guard(|| {
-        if out.is_null() {
-            return Err(null("out"));
-        }
-        // SAFETY: `out` is not null and the caller says it is writable.
-        unsafe { *out = std::ptr::null_mut() };
-        if path.is_null() {
-            return Err(null("path"));
-        }
-        // SAFETY: not null; the caller says it is NUL-terminated.
-        let p = unsafe { CStr::from_ptr(path) }
-            .to_str()
-            .map_err(|_| Error::invalid("path is not UTF-8"))?;
-        // SAFETY: null or a valid VtzLimits, as the caller says.
-        let lim = unsafe { limits.as_ref() };
-        let path = PathBuf::from(p);
-        let file = File::open(&path).map_err(|e| Error::io(path.display().to_string(), e))?;
-        let f = open(Box::new(BufReader::new(file)), lim).map_err(|e| e.context(path.display()))?;
-        // SAFETY: as above.
-        unsafe { *out = Box::into_raw(f) };
-        Ok(())
+        let opened = || {
+            if path.is_null() {
+                return Err(null("path"));
+            }
+            // SAFETY: not null; the caller says it is NUL-terminated.
+            let p = unsafe { CStr::from_ptr(path) }
+                .to_str()
+                .map_err(|_| Error::invalid("path is not UTF-8"))?;
+            // SAFETY: null or a valid VtzLimits, as the caller says.
+            let lim = unsafe { limits.as_ref() };
+            let path = PathBuf::from(p);
+            let file = File::open(&path).map_err(|e| Error::io(path.display().to_string(), e))?;
+            open(Box::new(BufReader::new(file)), lim).map_err(|e| e.context(path.display()))
+        };
+        // SAFETY: `out` is null or writable (the caller's promise).
+        unsafe { open_into(out, opened) }
     })
 }
 
@@ -377,25 +365,21 @@ pub unsafe extern "C" fn vtz_open_memory(
     out: *mut *mut VtzFile,
 ) -> i32 {
     guard(|| {
-        if out.is_null() {
-            return Err(null("out"));
-        }
-        // SAFETY: `out` is not null and writable.
-        unsafe { *out = std::ptr::null_mut() };
-        let bytes = if len == 0 {
-            Vec::new()
-        } else if data.is_null() {
-            return Err(null("data"));
-        } else {
-            // SAFETY: not null, `len` readable bytes as the caller says.
-            unsafe { std::slice::from_raw_parts(data, len) }.to_vec()
+        let opened = || {
+            let bytes = if len == 0 {
+                Vec::new()
+            } else if data.is_null() {
+                return Err(null("data"));
+            } else {
+                // SAFETY: not null, `len` readable bytes as the caller says.
+                unsafe { std::slice::from_raw_parts(data, len) }.to_vec()
+            };
+            // SAFETY: null or a valid VtzLimits.
+            let lim = unsafe { limits.as_ref() };
+            open(Box::new(Cursor::new(bytes)), lim)
         };
-        // SAFETY: null or a valid VtzLimits.
-        let lim = unsafe { limits.as_ref() };
-        let f = open(Box::new(Cursor::new(bytes)), lim)?;
-        // SAFETY: as above.
-        unsafe { *out = Box::into_raw(f) };
-        Ok(())
+        // SAFETY: `out` is null or writable (the caller's promise).
+        unsafe { open_into(out, opened) }
     })
 }
 
@@ -582,7 +566,7 @@ pub unsafe extern "C" fn vtz_read(
         dec.options(opts);
         let dec = &mut *dec;
         let buf = buf as usize;
-        on_threads(threads as usize, || {
+        vtz::on_threads(threads as usize, || {
             let buf = buf as *mut std::ffi::c_void;
             match t {
                 SampleType::U8 => fill!(dec, buf, n, u8),
@@ -799,7 +783,7 @@ pub unsafe extern "C" fn vtz_encode(
         }
         // SAFETY: the caller's promises, passed on.
         let (raster, eo, threads) = unsafe { encode_job(data, data_type, width, height, opts) }?;
-        let bytes = on_threads(threads, || vtz::encode(&raster, &eo))??;
+        let bytes = vtz::on_threads(threads, || vtz::encode(&raster, &eo))??;
         let boxed = bytes.into_boxed_slice();
         let len = boxed.len();
         // SAFETY: as above; the box is released by vtz_free_bytes with the same length.
@@ -832,7 +816,7 @@ pub unsafe extern "C" fn vtz_encode_to_path(
         };
         // SAFETY: the caller's promises, passed on.
         let (raster, eo, threads) = unsafe { encode_job(data, data_type, width, height, opts) }?;
-        let bytes = on_threads(threads, || vtz::encode(&raster, &eo))??;
+        let bytes = vtz::on_threads(threads, || vtz::encode(&raster, &eo))??;
         vtz::formats::write_file(std::path::Path::new(&p), bytes, true)
     })
 }

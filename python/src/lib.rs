@@ -13,9 +13,6 @@ use numpy::{
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList, PyTuple, PyType};
-use std::cell::RefCell;
-use std::collections::HashMap;
-use std::rc::Rc;
 use vtz::{
     DecodeOptions, EncodeOptions, Error, ErrorBound, Georef, Method, Raster, RasterType,
     SampleType, Scale, SectionChoice, Window,
@@ -84,34 +81,6 @@ fn python_words(msg: &str) -> String {
 
 fn invalid(py: Python<'_>, msg: impl Into<String>) -> PyErr {
     to_py(py, Error::invalid(msg))
-}
-
-/// Run `f` on a rayon pool of `threads` threads (0 = the global pool, all cores). Each
-/// calling thread keeps its own pools, one per size: a codec called once per chunk from a
-/// store's thread pool starts no threads per chunk, and chunks encoded on different threads
-/// run side by side (one shared pool of 1 would run them one after another).
-fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> vtz::Result<T> {
-    if threads == 0 {
-        return Ok(f());
-    }
-    thread_local! {
-        static POOLS: RefCell<HashMap<usize, Rc<rayon::ThreadPool>>> = RefCell::new(HashMap::new());
-    }
-    let pool = POOLS.with(|p| -> vtz::Result<Rc<rayon::ThreadPool>> {
-        let mut pools = p.borrow_mut();
-        if let Some(pool) = pools.get(&threads) {
-            return Ok(pool.clone());
-        }
-        let pool = Rc::new(
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .map_err(|e| Error::invalid(format!("cannot start {threads} threads: {e}")))?,
-        );
-        pools.insert(threads, pool.clone());
-        Ok(pool)
-    })?;
-    Ok(pool.install(f))
 }
 
 fn sample_type(py: Python<'_>, dtype: &str) -> PyResult<SampleType> {
@@ -299,7 +268,7 @@ fn encode<'py>(
     let opts = encode_options(py, max_error, lossless, method, effort, threads)?;
     let raster = raster_from(py, array, nodata)?;
     let bytes = py
-        .detach(|| on_threads(threads, || vtz::encode(&raster, &opts)).and_then(|r| r))
+        .detach(|| vtz::on_threads(threads, || vtz::encode(&raster, &opts)).and_then(|r| r))
         .map_err(|e| to_py(py, e))?;
     Ok(PyBytes::new(py, &bytes))
 }
@@ -393,7 +362,7 @@ fn decode<'py>(
     let opts = decode_options(py, window, scale, threads)?;
     let bytes = data.as_bytes();
     let r = py
-        .detach(|| on_threads(threads, || vtz::decode_with(bytes, &opts)).and_then(|r| r))
+        .detach(|| vtz::on_threads(threads, || vtz::decode_with(bytes, &opts)).and_then(|r| r))
         .map_err(|e| to_py(py, e))?;
     to_array(py, r)
 }
@@ -545,7 +514,7 @@ fn write<'py>(
         .is_some_and(|e| e.eq_ignore_ascii_case("vtz"));
     let res = py.detach(|| -> vtz::Result<()> {
         if is_vtz {
-            let bytes = on_threads(threads, || vtz::encode(&raster, &opts))??;
+            let bytes = vtz::on_threads(threads, || vtz::encode(&raster, &opts))??;
             vtz::formats::write_file(&path, bytes, force)
         } else {
             if opts.max_error.is_some() {
