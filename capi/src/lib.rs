@@ -154,7 +154,7 @@ pub struct VtzEncodeOptions {
     pub has_nodata: i32,
     /// The nodata value.
     pub nodata: f64,
-    /// 1 when `geotransform` georeferences the raster (north-up: [2] = [4] = 0).
+    /// 1 when `geotransform` georeferences the raster (north-up: elements 2 and 4 are 0).
     pub has_geotransform: i32,
     /// GDAL's geotransform.
     pub geotransform: [f64; 6],
