@@ -129,7 +129,7 @@ typedef struct VtzEncodeOptions {
   int32_t has_nodata;
   // The nodata value.
   double nodata;
-  // 1 when `geotransform` georeferences the raster (north-up: [2] = [4] = 0).
+  // 1 when `geotransform` georeferences the raster (north-up: elements 2 and 4 are 0).
   int32_t has_geotransform;
   // GDAL's geotransform.
   double geotransform[6];
