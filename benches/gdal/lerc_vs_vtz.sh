@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # gdal_translate -of VTZ against GDAL's own LERC (GeoTIFF COMPRESS=LERC and LERC_ZSTD) on the
-# same inputs at MAX_Z_ERROR=1: bytes, write and read times (median of REPEATS, wall
+# same inputs at MAX_Z_ERROR=1 (vtz at the default effort and at EFFORT=1): bytes, write and read times (median of REPEATS, wall
 # seconds, whole processes), and the max error each file reads back with (numpy, over the
 # source's valid samples). Needs the plugin: capi/build-gdal-plugin.sh.
 #
@@ -42,9 +42,11 @@ echo "|---|---|--:|--:|--:|--:|--:|"
 for name in srtm1 kauai delft; do
   src="$work/$name.tif"
   lerc_bytes=""
-  for codec in LERC LERC_ZSTD VTZ; do
+  for codec in LERC LERC_ZSTD VTZ VTZ_EFFORT1; do
     if [ "$codec" = VTZ ]; then
       out="$work/$name.vtz"; args=(-of VTZ -co MAX_Z_ERROR=1)
+    elif [ "$codec" = VTZ_EFFORT1 ]; then
+      out="$work/$name.e1.vtz"; args=(-of VTZ -co MAX_Z_ERROR=1 -co EFFORT=1)
     else
       out="$work/$name.$codec.tif"; args=(-of GTiff -co TILED=YES -co COMPRESS="$codec" -co MAX_Z_ERROR=1)
     fi
@@ -53,7 +55,7 @@ for name in srtm1 kauai delft; do
     bytes=$(stat -c %s "$out")
     [ "$codec" = LERC ] && lerc_bytes=$bytes
     err=$(maxerr "$src" "$work/$name.read.tif")
-    ratio=$(echo "scale=3; $bytes / $lerc_bytes" | bc)
-    printf '| %s | %s | %s | %s | %.3f | %.3f | %s |\n' "$name" "$codec" "$bytes" "$ratio" "$w" "$r" "$err"
+    ratio=$(echo "scale=4; $bytes / $lerc_bytes" | bc)
+    printf '| %s | %s | %s | %.3f | %.3f | %.3f | %s |\n' "$name" "$codec" "$bytes" "$ratio" "$w" "$r" "$err"
   done
 done

@@ -142,6 +142,12 @@ def same_raster(x, y):
     if (sa is None) != (sb is None) or (sa is not None and not sa.IsSame(sb)):
         fail(f"{x} / {y}: CRS differs")
 
+def same_samples(x, y):
+    """Two rasters hold the same samples bit for bit."""
+    a, b = gdal.Open(x).ReadAsArray(), gdal.Open(y).ReadAsArray()
+    if a.shape != b.shape or not arrays_equal(a, b):
+        fail(f"{x} / {y}: samples differ")
+
 def windows(vtz, ref):
     """gdal_translate -srcwin, gdallocationinfo and osgeo ReadAsArray windows equal crops."""
     full = gdal.Open(ref).ReadAsArray()
@@ -267,6 +273,7 @@ if __name__ == "__main__":
     elif cmd == "make_plain": make_plain(*args)
     elif cmd == "same_info": same_info(*args)
     elif cmd == "same_raster": same_raster(*args)
+    elif cmd == "same_samples": same_samples(*args)
     elif cmd == "windows": windows(*args)
     elif cmd == "bound": bound(args[0], args[1], float(args[2]))
     elif cmd == "corrupt_offset": corrupt_offset(*args)
@@ -333,6 +340,20 @@ step "4 + 6. windows: gdal_translate -srcwin, gdallocationinfo and osgeo ReadAsA
 for n in $names; do "$PY" chk.py windows $n.vtz $n.ref.tif; done
 echo "   with a 1 MB block cache (windows over several tiles decode straight into the buffer):"
 for n in kauai_v2 float_v2; do GDAL_CACHEMAX=1 "$PY" chk.py windows $n.vtz $n.ref.tif; done
+echo "   overviews (gdaladdo's external .ovr): a reduced read is served from them, as QGIS draws"
+for n in kauai_v1 kauai_v2; do
+    cp $n.vtz ${n}_ovr.vtz
+    gdaladdo -q -r average ${n}_ovr.vtz 2 4
+    # 1201 / 4 = overview 2's size; --debug on shows every vtz_read the driver makes.
+    gdal_translate --debug on -q -outsize 301 301 ${n}_ovr.vtz ${n}_small.tif 2>debug.log
+    if grep -q "vtz_read of" debug.log; then
+        echo "FAIL: $n: a reduced read with overviews decoded the .vtz: $(grep -m1 'vtz_read of' debug.log)" >&2
+        exit 1
+    fi
+    gdal_translate -q -ovr 1 ${n}_ovr.vtz ${n}_ovr1.tif
+    "$PY" chk.py same_samples ${n}_small.tif ${n}_ovr1.tif
+    ok "$n: a 301 x 301 read is overview 2, and nothing of the .vtz was decoded for it"
+done
 
 step "5. gdal_translate -of VTZ: the bound holds, vtz verify passes, LOSSLESS=YES round-trips exactly"
 for s in kauai float plain; do

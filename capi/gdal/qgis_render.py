@@ -50,7 +50,14 @@ def render(path, size, out=None):
     dt = time.perf_counter() - t0
     if out:
         job.renderedImage().save(out)
-    return layer, dt
+    ds = layer.dataProvider()
+    about = (
+        f"{layer.width()} x {layer.height()}, CRS {layer.crs().authid() or '(none)'},"
+        f" overviews {ds.hasPyramids()}"
+    )
+    # QGIS objects go before exitQgis (else the interpreter's teardown crashes).
+    del job, settings, layer
+    return about, dt
 
 
 def main():
@@ -59,13 +66,11 @@ def main():
     repeats = int(sys.argv[4]) if len(sys.argv) > 4 else 2
     app = QgsApplication([], False)
     app.initQgis()
-    layer, first = render(path, size, out)
-    ds = layer.dataProvider()
-    print(
-        f"{path}: driver {ds.htmlMetadata().count('VTZ') > 0 and 'VTZ' or '?'},"
-        f" {layer.width()} x {layer.height()}, CRS {layer.crs().authid()},"
-        f" overviews {ds.hasPyramids()}"
-    )
+    from osgeo import gdal
+
+    drv = gdal.OpenEx(path).GetDriver().ShortName
+    about, first = render(path, size, out)
+    print(f"{path}: GDAL driver {drv}, {about}")
     times = [first] + [render(path, size)[1] for _ in range(repeats)]
     print("render s: " + ", ".join(f"{t:.3f}" for t in times))
     print(f"picture: {out} ({size} x {size})")

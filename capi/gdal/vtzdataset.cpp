@@ -276,6 +276,12 @@ CPLErr VTZRasterBand::IRasterIO(GDALRWFlag eRWFlag, int nXOff, int nYOff,
             eRWFlag, nXOff, nYOff, nXSize, nYSize, pData, nBufXSize, nBufYSize,
             eBufType, nPixelSpace, nLineSpace, psExtraArg);
     const bool bFullRes = nXSize == nBufXSize && nYSize == nBufYSize;
+    // A reduced read with overviews (external .ovr from gdaladdo): the base class picks
+    // the overview, as for every GDAL driver, instead of decoding full-resolution tiles.
+    if (!bFullRes && GetOverviewCount() > 0)
+        return GDALPamRasterBand::IRasterIO(
+            eRWFlag, nXOff, nYOff, nXSize, nYSize, pData, nBufXSize, nBufYSize,
+            eBufType, nPixelSpace, nLineSpace, psExtraArg);
 
     if (!poGDS->m_sInfo.tiled)
     {
