@@ -142,6 +142,15 @@ def same_raster(x, y):
     if (sa is None) != (sb is None) or (sa is not None and not sa.IsSame(sb)):
         fail(f"{x} / {y}: CRS differs")
 
+def same_crs(x, y):
+    """Two rasters have the same CRS (not none) and geotransform."""
+    a, b = gdal.Open(x), gdal.Open(y)
+    sa, sb = a.GetSpatialRef(), b.GetSpatialRef()
+    if sa is None or sb is None or not sa.IsSame(sb):
+        fail(f"{x} / {y}: CRS differs: {sa and sa.ExportToProj4()} / {sb and sb.ExportToProj4()}")
+    if a.GetGeoTransform() != b.GetGeoTransform():
+        fail(f"{x} / {y}: geotransform {a.GetGeoTransform()} != {b.GetGeoTransform()}")
+
 def same_samples(x, y):
     """Two rasters hold the same samples bit for bit."""
     a, b = gdal.Open(x).ReadAsArray(), gdal.Open(y).ReadAsArray()
@@ -274,6 +283,7 @@ if __name__ == "__main__":
     elif cmd == "same_info": same_info(*args)
     elif cmd == "same_raster": same_raster(*args)
     elif cmd == "same_samples": same_samples(*args)
+    elif cmd == "same_crs": same_crs(*args)
     elif cmd == "windows": windows(*args)
     elif cmd == "bound": bound(args[0], args[1], float(args[2]))
     elif cmd == "corrupt_offset": corrupt_offset(*args)
@@ -315,6 +325,12 @@ ok "$(ls *.vtz | tr '\n' ' ')"
 
 step "2. gdalinfo of each .vtz shows the size, CRS, geotransform, nodata and metadata of its vtz-decoded GeoTIFF"
 for n in $names; do "$PY" chk.py same_info $n.vtz $n.ref.tif; done
+echo "   a CRS the source holds only as GeoTIFF keys (a Lambert azimuthal equal-area without an EPSG code):"
+gdal_translate -q -a_srs "+proj=laea +lat_0=52 +lon_0=10 +x_0=4321000 +y_0=3210000 +ellps=GRS80 +units=m +no_defs" \
+    -a_ullr 4000000 3500000 4120100 3379900 kauai.tif laea.tif
+"$VTZ" -q encode laea.tif -o laea.vtz --max-error 1
+"$PY" chk.py same_crs laea.tif laea.vtz
+ok "laea.vtz: the same CRS and geotransform as laea.tif"
 
 step "3. gdal_translate -of GTiff X.vtz equals vtz decode X.vtz bit for bit (and the golden files their expected samples)"
 for n in $names; do

@@ -797,6 +797,36 @@ GDALDataset *VTZDataset::Open(GDALOpenInfo *poOpenInfo)
         if (bEPSG && (poDS->m_oSRS.IsEmpty() || oEPSG.IsSame(&poDS->m_oSRS)))
             poDS->m_oSRS = oEPSG;
     }
+    if (poDS->m_oSRS.IsEmpty() && sInfo.has_geotransform)
+    {
+        // A CRS the source held only as GeoTIFF keys: the C ABI writes them into a 1 x 1
+        // GeoTIFF, and GDAL's GTiff driver reads them back exactly as from the source.
+        const size_t nTiff = vtz_get_georef_geotiff(hFile, nullptr, 0);
+        if (nTiff > 0)
+        {
+            std::vector<GByte> abyTiff(nTiff);
+            vtz_get_georef_geotiff(hFile, abyTiff.data(), abyTiff.size());
+            const std::string osMem =
+                CPLSPrintf("/vsimem/vtz_georef_%p.tif", static_cast<void *>(poDS.get()));
+            VSILFILE *fp = VSIFileFromMemBuffer(osMem.c_str(), abyTiff.data(),
+                                                abyTiff.size(), FALSE);
+            if (fp != nullptr)
+            {
+                VSIFCloseL(fp);
+                const char *const apszDrivers[] = {"GTiff", nullptr};
+                GDALDataset *poTiff = GDALDataset::FromHandle(GDALOpenEx(
+                    osMem.c_str(), GDAL_OF_RASTER | GDAL_OF_INTERNAL, apszDrivers,
+                    nullptr, nullptr));
+                if (poTiff != nullptr)
+                {
+                    if (const OGRSpatialReference *poSRS = poTiff->GetSpatialRef())
+                        poDS->m_oSRS = *poSRS;
+                    GDALClose(poTiff);
+                }
+                VSIUnlink(osMem.c_str());
+            }
+        }
+    }
 
     const std::string osMD =
         TwoCallText([hFile](char *buf, size_t cap)

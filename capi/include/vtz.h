@@ -196,6 +196,17 @@ size_t vtz_get_crs(const struct VtzFile *file, char *buf, size_t cap);
 // `file` is null or an open handle; `buf` is null or holds `cap` writable bytes.
 size_t vtz_get_gdal_metadata(const struct VtzFile *file, char *buf, size_t cap);
 
+// The georeferencing as a GeoTIFF of 1 x 1 samples (geotransform, CRS as EPSG code, WKT or
+// GeoTIFF keys, pixel-is-point: what `vtz decode -o X.tif` writes), copied into `buf` when
+// `cap` bytes hold it. Returns the bytes it needs; 0 when the file is not georeferenced (or
+// `file` is null). For readers that interpret GeoTIFF keys themselves (GDAL: open it from
+// memory and take its spatial reference) when `vtz_get_crs` gives an empty string: a CRS
+// the source stored only as GeoTIFF keys.
+//
+// # Safety
+// `file` is null or an open handle; `buf` is null or holds `cap` writable bytes.
+size_t vtz_get_georef_geotiff(const struct VtzFile *file, uint8_t *buf, size_t cap);
+
 // Decode the window of `width` × `height` samples at (`x`, `y`) (the whole raster: 0, 0,
 // its width, its height) into `buf`, row-major, as samples of `buf_type` (the file's
 // sample type or a wider one; a value the type cannot hold is `VTZ_ERR_INVALID_ARGUMENT`,

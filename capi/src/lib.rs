@@ -70,6 +70,9 @@ pub struct VtzFile {
     gdal_metadata: Option<CString>,
     /// The max error the file guarantees (0 = lossless).
     max_error: f64,
+    /// A 1 x 1 GeoTIFF carrying the georeferencing (GeoTIFF keys included); empty when the
+    /// file has none.
+    georef_tiff: Vec<u8>,
 }
 
 /// What a reader needs: a file or bytes in memory, moved between threads with its handle.
@@ -290,7 +293,16 @@ fn open(reader: Box<dyn ReadSeek>, lim: Option<&VtzLimits>) -> vtz::Result<Box<V
         .as_ref()
         .and_then(vtz::formats::crs_user_input)
         .unwrap_or_default();
+    let georef_tiff = match &info.georef {
+        Some(g) => {
+            let mut r = Raster::from_values(1, 1, vec![0.0], None, SampleType::U8)?;
+            r.georef = Some(g.clone());
+            vtz::formats::geotiff_bytes(&r)?
+        }
+        None => Vec::new(),
+    };
     Ok(Box::new(VtzFile {
+        georef_tiff,
         dec: Mutex::new(dec),
         info,
         wkt: CString::new(wkt.replace('\0', " ")).unwrap_or_default(),
@@ -492,6 +504,33 @@ pub unsafe extern "C" fn vtz_get_gdal_metadata(
         Some(x) => give_text(x, buf, cap),
         None => 0,
     }
+}
+
+/// The georeferencing as a GeoTIFF of 1 x 1 samples (geotransform, CRS as EPSG code, WKT or
+/// GeoTIFF keys, pixel-is-point: what `vtz decode -o X.tif` writes), copied into `buf` when
+/// `cap` bytes hold it. Returns the bytes it needs; 0 when the file is not georeferenced (or
+/// `file` is null). For readers that interpret GeoTIFF keys themselves (GDAL: open it from
+/// memory and take its spatial reference) when `vtz_get_crs` gives an empty string: a CRS
+/// the source stored only as GeoTIFF keys.
+///
+/// # Safety
+/// `file` is null or an open handle; `buf` is null or holds `cap` writable bytes.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn vtz_get_georef_geotiff(
+    file: *const VtzFile,
+    buf: *mut u8,
+    cap: usize,
+) -> usize {
+    // SAFETY: null or an open handle.
+    let Some(f) = (unsafe { file.as_ref() }) else {
+        return 0;
+    };
+    let b = &f.georef_tiff;
+    if !buf.is_null() && cap >= b.len() {
+        // SAFETY: `buf` holds `cap` ≥ b.len() writable bytes (the caller's promise).
+        unsafe { std::ptr::copy_nonoverlapping(b.as_ptr(), buf, b.len()) };
+    }
+    b.len()
 }
 
 macro_rules! fill {

@@ -92,6 +92,11 @@ static void test_round_trip_and_windows(void) {
   size_t need = vtz_get_crs(f, NULL, 0);
   CHECK(need > 1 && need <= sizeof crs, "crs length %zu", need);
   CHECK(vtz_get_crs(f, crs, sizeof crs) == need && strstr(crs, "WGS 84"), "crs text: %.60s", crs);
+  size_t ntiff = vtz_get_georef_geotiff(f, NULL, 0);
+  uint8_t tiff[4096];
+  CHECK(ntiff > 8 && ntiff <= sizeof tiff && vtz_get_georef_geotiff(f, tiff, sizeof tiff) == ntiff &&
+            memcmp(tiff, "II*", 3) == 0,
+        "the georeferencing as a GeoTIFF: %zu bytes", ntiff);
   char meta[512];
   /* Lossy: the metadata comes back without statistics, the rest byte for byte. */
   CHECK(vtz_get_gdal_metadata(f, meta, sizeof meta) == strlen(o.gdal_metadata) + 1 &&
@@ -209,6 +214,8 @@ static void test_lossless_float_and_tiles(const char *tmp) {
             info.tile_rows == 4,
         "tile grid %ux%u of %ux%u", info.tile_cols, info.tile_rows, info.tile_width, info.tile_height);
   CHECK(info.max_error == 0, "lossless: stored max error %g", info.max_error);
+  CHECK(vtz_get_georef_geotiff(f, NULL, 0) == 0 && vtz_get_crs(f, NULL, 0) == 1,
+        "no georeferencing: no GeoTIFF, an empty CRS");
   CHECK(vtz_read(f, 0, 0, W, H, VTZ_F32, dec, sizeof dec, 2) == VTZ_OK, "read tiled");
   CHECK(memcmp(src, dec, sizeof src) == 0, "lossless f32 round trip, NaNs kept, bit for bit");
   CHECK(vtz_read(f, 50, 60, 90, 70, VTZ_F32, win, sizeof win, 1) == VTZ_OK, "window across tiles");

@@ -36,6 +36,13 @@ pub fn crs_user_input(g: &crate::model::Georef) -> Option<String> {
     crs::crs_user_input(g).map(|c| c.into_owned())
 }
 
+/// A GeoTIFF of `r` in memory, as `vtz decode -o X.tif` writes a raster (the same tags,
+/// GeoTIFF keys included). The C ABI gives a 1 x 1 one to GDAL so that a CRS stored only as
+/// GeoTIFF keys reads back exactly as from the source GeoTIFF.
+pub fn geotiff_bytes(r: &Raster) -> Result<Vec<u8>> {
+    geotiff::write(r)
+}
+
 /// Raster file formats vtz reads and writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
