@@ -1169,6 +1169,21 @@ GDALDataset *VTZDataset::CreateCopy(const char *pszFilename, GDALDataset *poSrcD
         CPLError(CE_Failure, CPLE_UserInterrupt, "User terminated");
         return nullptr;
     }
+    // The encode reports its fraction done: the second half of GDAL's bar (the C ABI
+    // cannot stop an encode, so a cancel here takes effect when it returns).
+    struct EncodeProgress
+    {
+        GDALProgressFunc pfn;
+        void *pData;
+        bool bCancelled;
+    } sProgress{pfnProgress, pProgressData, false};
+    sOpts.progress = [](double dfFraction, void *pUser)
+    {
+        auto *p = static_cast<EncodeProgress *>(pUser);
+        if (!p->bCancelled && !p->pfn(0.5 + 0.5 * dfFraction, "encoding", p->pData))
+            p->bCancelled = true;
+    };
+    sOpts.progress_data = &sProgress;
 
     int rc;
     if (STARTS_WITH(pszFilename, "/vsi"))
@@ -1204,6 +1219,12 @@ GDALDataset *VTZDataset::CreateCopy(const char *pszFilename, GDALDataset *poSrcD
     if (rc != VTZ_OK)
     {
         ReportVtzError(pszFilename);
+        return nullptr;
+    }
+    if (sProgress.bCancelled)
+    {
+        VSIUnlink(pszFilename);
+        CPLError(CE_Failure, CPLE_UserInterrupt, "User terminated");
         return nullptr;
     }
     pfnProgress(1.0, "", pProgressData);

@@ -141,6 +141,12 @@ typedef struct VtzEncodeOptions {
   const char *crs_wkt;
   // GDAL metadata XML (GDAL_METADATA), NUL-terminated; null = none.
   const char *gdal_metadata;
+  // Called with the fraction done (0 at the start, never decreasing, 1 at the end) and
+  // `progress_data`, one call at a time, from the thread that runs the encode; null =
+  // none.
+  void (*progress)(double fraction, void *progress_data);
+  // Passed to `progress` as it is.
+  void *progress_data;
 } VtzEncodeOptions;
 
 #ifdef __cplusplus

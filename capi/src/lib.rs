@@ -15,7 +15,7 @@
 //! this file by cbindgen (`tests/header.rs` fails when it is stale).
 
 use std::cell::RefCell;
-use std::ffi::{CStr, CString, c_char};
+use std::ffi::{CStr, CString, c_char, c_void};
 use std::fs::File;
 use std::io::{BufReader, Cursor, Read, Seek};
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -169,6 +169,12 @@ pub struct VtzEncodeOptions {
     pub crs_wkt: *const c_char,
     /// GDAL metadata XML (GDAL_METADATA), NUL-terminated; null = none.
     pub gdal_metadata: *const c_char,
+    /// Called with the fraction done (0 at the start, never decreasing, 1 at the end) and
+    /// `progress_data`, one call at a time, from the thread that runs the encode; null =
+    /// none.
+    pub progress: Option<unsafe extern "C" fn(fraction: f64, progress_data: *mut c_void)>,
+    /// Passed to `progress` as it is.
+    pub progress_data: *mut c_void,
 }
 
 thread_local! {
@@ -638,6 +644,8 @@ pub extern "C" fn vtz_encode_options_init() -> VtzEncodeOptions {
         epsg: 0,
         crs_wkt: std::ptr::null(),
         gdal_metadata: std::ptr::null(),
+        progress: None,
+        progress_data: std::ptr::null_mut(),
     }
 }
 
@@ -666,7 +674,7 @@ unsafe fn encode_job(
     width: u32,
     height: u32,
     opts: *const VtzEncodeOptions,
-) -> vtz::Result<(Raster, EncodeOptions, usize)> {
+) -> vtz::Result<(Raster, EncodeOptions, usize, Progress)> {
     if data.is_null() {
         return Err(null("data"));
     }
@@ -789,7 +797,36 @@ unsafe fn encode_job(
         }
     };
     eo.threads = o.threads as usize;
-    Ok((raster, eo, o.threads as usize))
+    let progress = Progress(o.progress, o.progress_data);
+    Ok((raster, eo, o.threads as usize, progress))
+}
+
+/// The caller's progress callback and its data.
+#[derive(Clone, Copy)]
+struct Progress(Option<unsafe extern "C" fn(f64, *mut c_void)>, *mut c_void);
+
+// SAFETY: the encode runs on one thread of a pool while the caller's thread waits for it;
+// the callback is called from that one thread, one call at a time, as its documentation
+// says, and `progress_data` is only passed back to it.
+unsafe impl Send for Progress {}
+
+/// Encode with the caller's progress callback.
+fn encode_with(
+    raster: &Raster,
+    eo: &EncodeOptions,
+    threads: usize,
+    p: Progress,
+) -> vtz::Result<Vec<u8>> {
+    vtz::on_threads(threads, move || {
+        let p = p;
+        let mut report = |f: f64| {
+            if let Some(cb) = p.0 {
+                // SAFETY: a callback the caller gave for this call, with its own data.
+                unsafe { cb(f, p.1) }
+            }
+        };
+        vtz::encode_progress(raster, eo, &mut report).map(|(bytes, _)| bytes)
+    })?
 }
 
 /// Encode `width` × `height` samples of `data_type` at `data` (row-major, row 0 north) with
@@ -821,8 +858,9 @@ pub unsafe extern "C" fn vtz_encode(
             *out_len = 0;
         }
         // SAFETY: the caller's promises, passed on.
-        let (raster, eo, threads) = unsafe { encode_job(data, data_type, width, height, opts) }?;
-        let bytes = vtz::on_threads(threads, || vtz::encode(&raster, &eo))??;
+        let (raster, eo, threads, progress) =
+            unsafe { encode_job(data, data_type, width, height, opts) }?;
+        let bytes = encode_with(&raster, &eo, threads, progress)?;
         let boxed = bytes.into_boxed_slice();
         let len = boxed.len();
         // SAFETY: as above; the box is released by vtz_free_bytes with the same length.
@@ -854,8 +892,9 @@ pub unsafe extern "C" fn vtz_encode_to_path(
             return Err(null("path"));
         };
         // SAFETY: the caller's promises, passed on.
-        let (raster, eo, threads) = unsafe { encode_job(data, data_type, width, height, opts) }?;
-        let bytes = vtz::on_threads(threads, || vtz::encode(&raster, &eo))??;
+        let (raster, eo, threads, progress) =
+            unsafe { encode_job(data, data_type, width, height, opts) }?;
+        let bytes = encode_with(&raster, &eo, threads, progress)?;
         vtz::formats::write_file(std::path::Path::new(&p), bytes, true)
     })
 }

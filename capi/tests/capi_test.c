@@ -55,6 +55,19 @@ static void make_terrain(int16_t *z) {
     }
 }
 
+/* A progress callback: counts calls, checks the fractions never decrease. */
+struct progress {
+  int calls;
+  double last;
+  int decreasing;
+};
+static void on_progress(double f, void *data) {
+  struct progress *p = data;
+  if (f < p->last) p->decreasing = 1;
+  p->last = f;
+  p->calls++;
+}
+
 static void test_round_trip_and_windows(void) {
   static int16_t src[W * H], dec[W * H], win[40 * 30];
   static double wide[W * H];
@@ -68,10 +81,15 @@ static void test_round_trip_and_windows(void) {
   memcpy(o.geotransform, gt, sizeof gt);
   o.epsg = 4326;
   o.gdal_metadata = "<GDALMetadata><Item name=\"UNITTYPE\" sample=\"0\" role=\"unittype\">m</Item></GDALMetadata>";
+  struct progress prog = {0, 0.0, 0};
+  o.progress = on_progress;
+  o.progress_data = &prog;
   uint8_t *bytes = NULL;
   size_t len = 0;
   int rc = vtz_encode(src, VTZ_I16, W, H, &o, &bytes, &len);
   CHECK(rc == VTZ_OK && bytes && len > 0, "encode: rc %d", rc);
+  CHECK(prog.calls >= 2 && prog.last == 1.0 && !prog.decreasing,
+        "progress: %d calls, last %g, decreasing %d", prog.calls, prog.last, prog.decreasing);
   if (rc != VTZ_OK) return;
 
   VtzFile *f = NULL;
