@@ -27,7 +27,9 @@ elif [ -n "$libgdal" ] && command -v apt-get >/dev/null 2>&1; then
     if [ ! -f "$dev/usr/include/gdal/gdal_priv.h" ]; then
         echo "unpacking Debian's libgdal-dev for GDAL's headers (into $dev)" >&2
         tmp="$(mktemp -d)"
-        (cd "$tmp" && apt-get download -q libgdal-dev >/dev/null)
+        # A machine whose package lists were never fetched needs them first.
+        (cd "$tmp" && apt-get download -q libgdal-dev >/dev/null 2>&1) ||
+            { apt-get update -qq && (cd "$tmp" && apt-get download -q libgdal-dev >/dev/null); }
         rm -rf "$dev"
         dpkg -x "$tmp"/libgdal-dev_*.deb "$dev"
         rm -rf "$tmp"
