@@ -13,6 +13,7 @@
 #include "cpl_vsi.h"
 #include "vtz.h"
 
+#include <algorithm>
 #include <cstdint>
 #include <limits>
 
@@ -44,8 +45,15 @@ bool VTZDecompress(const void *input_data, size_t input_size, void **output_data
 {
     if (input_data == nullptr || output_size == nullptr)
         return false;
+    // A chunk's header may claim any size, and a few bytes may legally code a huge constant
+    // raster: the samples it may decode to are bounded before anything is allocated, by
+    // the buffer GDAL gives (its chunk size), else by 2^26 samples.
+    VtzLimits sLimits{};
+    sLimits.max_samples = (output_data != nullptr && *output_data != nullptr)
+                              ? std::max<uint64_t>(1, *output_size)
+                              : (uint64_t{1} << 26);
     VtzFile *file = nullptr;
-    if (vtz_open_memory(static_cast<const uint8_t *>(input_data), input_size, nullptr,
+    if (vtz_open_memory(static_cast<const uint8_t *>(input_data), input_size, &sLimits,
                         &file) != VTZ_OK)
     {
         CPLError(CE_Failure, CPLE_AppDefined, "vtz chunk: %s", vtz_last_error());

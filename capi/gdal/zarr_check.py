@@ -6,7 +6,8 @@ With a Python that has the vtz wheel, zarr and numcodecs: writes RASTER as a Zar
 array with `vtz.numcodecs.Vtz(max_error=1)` as its compressor (chunks 500 x 500, so edge
 chunks are partial), converts it with `gdal_translate` (GDAL_DRIVER_PATH must name the
 plugin's folder) and checks that GDAL's samples are exactly the ones zarr-python decodes,
-and within 1 of the source. Exits 1 on any difference. A Zarr format 3 store (the
+and within 1 of the source; a chunk that decodes to more samples than its chunk holds is
+an error, not a crash. Exits 1 on any difference. A Zarr format 3 store (the
 `vtz.zarr.VtzCodec` serializer) is tried too and its outcome printed: GDAL 3.6's Zarr V3
 support follows an earlier draft of the specification than zarr-python 3 writes.
 """
@@ -66,6 +67,25 @@ def main():
         f" GDAL == zarr-python: {same}; max error against the source: {worst}"
     )
     ok &= same and worst <= 1
+
+    # A chunk that decodes to more samples than the chunk holds (a valid vtz stream of a
+    # constant 1200 x 1200 raster in place of a 500 x 500 chunk): refused by the limit
+    # GDAL's buffer sets, before anything is allocated; an error, not a crash.
+    import shutil
+
+    bad = os.path.join(work, "v2_bad.zarr")
+    shutil.copytree(path2, bad)
+    big = vtz.encode(np.zeros((1200, 1200), dtype=src.dtype), max_error=1)
+    with open(os.path.join(bad, "0.0"), "wb") as f:
+        f.write(big)
+    r = subprocess.run(
+        ["gdal_translate", "-q", "-of", "GTiff", bad, os.path.join(work, "bad.tif")],
+        capture_output=True,
+        text=True,
+    )
+    refused = r.returncode == 1 and "limit" in r.stderr
+    print(f"an oversized chunk: exit {r.returncode}, {r.stderr.strip().splitlines()[:1]}")
+    ok &= refused
 
     path3 = os.path.join(work, "v3.zarr")
     z3 = zarr.create_array(
