@@ -70,9 +70,10 @@ pub struct VtzFile {
     gdal_metadata: Option<CString>,
     /// The max error the file guarantees (0 = lossless).
     max_error: f64,
-    /// A 1 x 1 GeoTIFF carrying the georeferencing (GeoTIFF keys included); empty when the
-    /// file has none.
-    georef_tiff: Vec<u8>,
+    /// A 1 x 1 GeoTIFF carrying the georeferencing (GeoTIFF keys included), made on the
+    /// first `vtz_get_georef_geotiff` (a Zarr chunk's handle never asks); empty when the file
+    /// has none or it cannot be written.
+    georef_tiff: std::sync::OnceLock<Vec<u8>>,
 }
 
 /// What a reader needs: a file or bytes in memory, moved between threads with its handle.
@@ -299,16 +300,8 @@ fn open(reader: Box<dyn ReadSeek>, lim: Option<&VtzLimits>) -> vtz::Result<Box<V
         .as_ref()
         .and_then(vtz::formats::crs_user_input)
         .unwrap_or_default();
-    let georef_tiff = match &info.georef {
-        Some(g) => {
-            let mut r = Raster::from_values(1, 1, vec![0.0], None, SampleType::U8)?;
-            r.georef = Some(g.clone());
-            vtz::formats::geotiff_bytes(&r)?
-        }
-        None => Vec::new(),
-    };
     Ok(Box::new(VtzFile {
-        georef_tiff,
+        georef_tiff: std::sync::OnceLock::new(),
         dec: Mutex::new(dec),
         info,
         wkt: CString::new(wkt.replace('\0', " ")).unwrap_or_default(),
@@ -531,7 +524,19 @@ pub unsafe extern "C" fn vtz_get_georef_geotiff(
     let Some(f) = (unsafe { file.as_ref() }) else {
         return 0;
     };
-    let b = &f.georef_tiff;
+    let b = f.georef_tiff.get_or_init(|| {
+        let Some(g) = &f.info.georef else {
+            return Vec::new();
+        };
+        catch_unwind(AssertUnwindSafe(|| {
+            let mut r = Raster::from_values(1, 1, vec![0.0], None, SampleType::U8).ok()?;
+            r.georef = Some(g.clone());
+            vtz::formats::geotiff_bytes(&r).ok()
+        }))
+        .ok()
+        .flatten()
+        .unwrap_or_default()
+    });
     if !buf.is_null() && cap >= b.len() {
         // SAFETY: `buf` holds `cap` ≥ b.len() writable bytes (the caller's promise).
         unsafe { std::ptr::copy_nonoverlapping(b.as_ptr(), buf, b.len()) };
