@@ -354,3 +354,224 @@ fn a_pixel_is_point_raster_keeps_its_extent() {
         g.origin
     );
 }
+
+// ---------------------------------------------------------------- overviews
+
+fn overview(
+    bytes: &[u8],
+    k: u32,
+    window: Option<vtz::Window>,
+    threads: usize,
+) -> vtz::Result<Raster> {
+    vtz::decode_with(
+        bytes,
+        &decode_opts(|o| {
+            o.overview = Some(k);
+            o.window = window;
+            o.threads = threads;
+        }),
+    )
+}
+
+/// Every 2^k-th sample of every 2^k-th row.
+fn decimated(r: &Raster, k: u32) -> (usize, usize, Vec<u64>, Vec<bool>) {
+    let s = 1 << k;
+    let (ow, oh) = (r.width.div_ceil(s), r.height.div_ceil(s));
+    let mut v = Vec::new();
+    let mut m = Vec::new();
+    for y in (0..r.height).step_by(s) {
+        for x in (0..r.width).step_by(s) {
+            v.push(r.data[y * r.width + x].to_bits());
+            m.push(r.is_valid(y * r.width + x));
+        }
+    }
+    (ow, oh, v, m)
+}
+
+/// An untiled file's overview K is its full decode at every 2^K-th row and column, bit for
+/// bit, for every method and for the residual layer's three codings (range-coded
+/// interpolation at the default effort, the fast coding at effort 1, the weighted scan
+/// predictor that effort 3 may pick), with nodata holes and flat regions; pixels 2^K times
+/// larger from the same corner; a window of it is its crop.
+#[test]
+fn an_untiled_overview_is_the_full_decode_at_every_2k_th_sample() {
+    let (w, h) = (75, 53);
+    for (kind, st) in [
+        (Kind::Fbm, SampleType::F32),
+        (Kind::Plateau, SampleType::I16),
+    ] {
+        let src = georeferenced(terrain(kind, w, h, 5, true, st));
+        let mut runs: Vec<(String, vtz::EncodeOptions)> = METHODS
+            .iter()
+            .map(|&m| {
+                (
+                    m.name().to_string(),
+                    encode_opts(&[m], Some(ErrorBound::Abs(10.0))),
+                )
+            })
+            .collect();
+        for effort in [1u8, 3, 5] {
+            for bound in [None, Some(ErrorBound::Abs(0.5))] {
+                let mut o = encode_opts(&[Method::RESIDUAL], bound);
+                o.effort = Some(effort);
+                runs.push((format!("residual effort {effort} {bound:?}"), o));
+            }
+        }
+        for (name, opts) in runs {
+            let bytes = match vtz::encode(&src, &opts) {
+                Ok(b) => b,
+                // FIS cannot reach a bound across the plateau's cliff: nothing to decode.
+                Err(vtz::Error::Unmet { .. }) if name == "fis" && kind == Kind::Plateau => continue,
+                Err(e) => panic!("{name} {kind:?}: {e}"),
+            };
+            let full = vtz::decode(&bytes).unwrap();
+            for k in [1u32, 2, 3, 7] {
+                let what = format!("{name} {kind:?} overview {k}");
+                let o = overview(&bytes, k, None, 0).unwrap_or_else(|e| panic!("{what}: {e}"));
+                let (ow, oh, v, m) = decimated(&full, k);
+                assert_eq!((o.width, o.height), (ow, oh), "{what}");
+                assert_eq!(bits(&o), v, "{what}");
+                let valid: Vec<bool> = (0..o.data.len()).map(|i| o.is_valid(i)).collect();
+                assert_eq!(valid, m, "{what}");
+                let g = o.georef.as_ref().unwrap();
+                assert_eq!(g.origin, [1000.0, 2000.0], "{what}");
+                let px = 10.0 * (1u32 << k) as f64;
+                assert_eq!(g.pixel_size, [px, px], "{what}");
+                if ow > 2 && oh > 2 {
+                    let win = vtz::Window {
+                        x: 1,
+                        y: 1,
+                        width: ow - 2,
+                        height: oh - 1,
+                    };
+                    let part = overview(&bytes, k, Some(win), 1).unwrap();
+                    let crop: Vec<u64> = (1..oh)
+                        .flat_map(|y| (1..ow - 1).map(move |x| (x, y)))
+                        .map(|(x, y)| o.data[y * ow + x].to_bits())
+                        .collect();
+                    assert_eq!(bits(&part), crop, "{what} window");
+                    assert_eq!(part.georef.unwrap().origin, [1000.0 + px, 2000.0 - px]);
+                }
+            }
+        }
+    }
+}
+
+/// A tiled file's overview sample (x, y) is the decode of the tile whose core holds
+/// (x·2^K, y·2^K), at the nearest point of that tile's own 2^K lattice (ties to the lower):
+/// within the bound of the source there (the source itself when lossless). The same bits
+/// for any thread count; a window is the crop of the whole overview.
+#[test]
+fn a_tiled_overview_takes_each_sample_from_its_tile_within_the_bound() {
+    let (w, h) = (301, 233);
+    let src = georeferenced(terrain(Kind::Fbm, w, h, 9, true, SampleType::F32));
+    for (bound, effort) in [(None, 5u8), (Some(1.5), 5), (Some(1.5), 1)] {
+        let mut opts = encode_opts(&[], bound.map(ErrorBound::Abs));
+        opts.tile = Some(96);
+        opts.effort = Some(effort);
+        let bytes = vtz::encode(&src, &opts).unwrap();
+        let info = vtz::Decoder::new(std::io::Cursor::new(&bytes))
+            .unwrap()
+            .info()
+            .clone();
+        let t = info.tiles.as_ref().expect("a tiled file");
+        let (tw, th, margin) = (
+            t.tile_width as usize,
+            t.tile_height as usize,
+            t.margin as usize,
+        );
+        for k in [1u32, 2, 3, 4] {
+            let what = format!("{bound:?} effort {effort} overview {k}");
+            let s = 1usize << k;
+            let o = overview(&bytes, k, None, 1).unwrap_or_else(|e| panic!("{what}: {e}"));
+            assert_eq!(
+                (o.width, o.height),
+                (w.div_ceil(s), h.div_ceil(s)),
+                "{what}"
+            );
+            // The position a sample comes from, along one axis of n samples.
+            let from = |p: usize, t: usize, n: usize| {
+                let c = p / t;
+                let e0 = (c * t).saturating_sub(margin);
+                let e1 = ((c + 1) * t + margin).min(n);
+                let m = ((p - e0 + (s - 1) / 2) / s).min((e1 - e0).div_ceil(s) - 1);
+                e0 + m * s
+            };
+            for y in 0..o.height {
+                let sy = from(y * s, th, h);
+                for x in 0..o.width {
+                    let sx = from(x * s, tw, w);
+                    let (i, j) = (y * o.width + x, sy * w + sx);
+                    assert_eq!(o.is_valid(i), src.is_valid(j), "{what} ({x},{y})");
+                    if o.is_valid(i) {
+                        let d = (o.data[i] - src.data[j]).abs();
+                        assert!(
+                            d <= bound.unwrap_or(0.0),
+                            "{what} ({x},{y}) from ({sx},{sy}): {d}"
+                        );
+                    }
+                }
+            }
+            let o2 = overview(&bytes, k, None, 2).unwrap();
+            assert_eq!(bits(&o), bits(&o2), "{what}: threads");
+            let win = vtz::Window {
+                x: 3,
+                y: 2,
+                width: o.width - 5,
+                height: o.height - 3,
+            };
+            let part = overview(&bytes, k, Some(win), 0).unwrap();
+            let crop: Vec<u64> = (2..2 + win.height)
+                .flat_map(|y| (3..3 + win.width).map(move |x| (x, y)))
+                .map(|(x, y)| o.data[y * o.width + x].to_bits())
+                .collect();
+            assert_eq!(bits(&part), crop, "{what} window");
+        }
+    }
+}
+
+/// Overview requests that cannot be: a clear error each (library and CLI, exit 2).
+#[test]
+fn overview_requests_out_of_range_are_errors() {
+    let src = terrain(Kind::Fbm, 40, 30, 3, false, SampleType::F32);
+    let bytes = vtz::encode(&src, &encode_opts(&[], Some(ErrorBound::Abs(1.0)))).unwrap();
+    for k in [0u32, 31] {
+        let e = overview(&bytes, k, None, 0).unwrap_err().to_string();
+        assert!(e.contains("not in 1..=30"), "{e}");
+    }
+    let e = overview(
+        &bytes,
+        1,
+        Some(vtz::Window {
+            x: 0,
+            y: 0,
+            width: 21,
+            height: 1,
+        }),
+        0,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("not inside overview 1 (20x15"), "{e}");
+    let e = vtz::decode_with(
+        &bytes,
+        &decode_opts(|o| {
+            o.overview = Some(1);
+            o.scale = Some(Scale::parse("0.5").unwrap());
+        }),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("cannot be combined"), "{e}");
+    // The CLI: the overview's size, and a bad level as a usage error.
+    let dir = tempfile::tempdir().unwrap();
+    let f = tmp(&dir, "a.vtz");
+    std::fs::write(&f, &bytes).unwrap();
+    let out = tmp(&dir, "o.f32");
+    let o = vtz(["decode", &f, "-o", &out, "--overview", "2", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(std::fs::metadata(&out).unwrap().len(), 10 * 8 * 4);
+    let o = vtz(["decode", &f, "-o", &out, "-f", "--overview", "0"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("not in 1..=30"), "{}", stderr(&o));
+}

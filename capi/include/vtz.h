@@ -235,6 +235,28 @@ int32_t vtz_read(const struct VtzFile *file,
                  size_t buf_bytes,
                  uint32_t threads);
 
+// As [`vtz_read`], from overview `level` (0: the full resolution, as `vtz_read`): the
+// raster of ⌈width / 2^level⌉ × ⌈height / 2^level⌉ samples, pixels 2^level times larger,
+// the same corner (GDAL's overview); the window is in the overview's samples. Sample (x, y)
+// is a decoded sample of the source at (x·2^level, y·2^level): in an untiled file the full
+// decode's there, bit for bit; in a tiled file the decode of the tile whose core holds it,
+// at that tile's nearest point of its own 2^level lattice. The residual layer's
+// interpolation codings decode only their coarse levels for it (about 1/4^level of the
+// work); other methods decode in full. `level` ≤ 30.
+//
+// # Safety
+// As [`vtz_read`].
+int32_t vtz_read_overview(const struct VtzFile *file,
+                          uint32_t level,
+                          uint32_t x,
+                          uint32_t y,
+                          uint32_t width,
+                          uint32_t height,
+                          int32_t buf_type,
+                          void *buf,
+                          size_t buf_bytes,
+                          uint32_t threads);
+
 // Options with their defaults: lossless, `best`, effort 5, vtz's tiling, all threads, no
 // nodata, no georeferencing.
 struct VtzEncodeOptions vtz_encode_options_init(void);

@@ -578,6 +578,72 @@ pub unsafe extern "C" fn vtz_read(
     buf_bytes: usize,
     threads: u32,
 ) -> i32 {
+    // SAFETY: the caller's promises, passed on.
+    unsafe {
+        read(
+            file,
+            0,
+            [x, y, width, height],
+            buf_type,
+            buf,
+            buf_bytes,
+            threads,
+        )
+    }
+}
+
+/// As [`vtz_read`], from overview `level` (0: the full resolution, as `vtz_read`): the
+/// raster of ⌈width / 2^level⌉ × ⌈height / 2^level⌉ samples, pixels 2^level times larger,
+/// the same corner (GDAL's overview); the window is in the overview's samples. Sample (x, y)
+/// is a decoded sample of the source at (x·2^level, y·2^level): in an untiled file the full
+/// decode's there, bit for bit; in a tiled file the decode of the tile whose core holds it,
+/// at that tile's nearest point of its own 2^level lattice. The residual layer's
+/// interpolation codings decode only their coarse levels for it (about 1/4^level of the
+/// work); other methods decode in full. `level` ≤ 30.
+///
+/// # Safety
+/// As [`vtz_read`].
+#[unsafe(no_mangle)]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn vtz_read_overview(
+    file: *const VtzFile,
+    level: u32,
+    x: u32,
+    y: u32,
+    width: u32,
+    height: u32,
+    buf_type: i32,
+    buf: *mut std::ffi::c_void,
+    buf_bytes: usize,
+    threads: u32,
+) -> i32 {
+    // SAFETY: the caller's promises, passed on.
+    unsafe {
+        read(
+            file,
+            level,
+            [x, y, width, height],
+            buf_type,
+            buf,
+            buf_bytes,
+            threads,
+        )
+    }
+}
+
+/// [`vtz_read`] and [`vtz_read_overview`] (`level` 0: the full resolution).
+///
+/// # Safety
+/// As [`vtz_read`].
+unsafe fn read(
+    file: *const VtzFile,
+    level: u32,
+    [x, y, width, height]: [u32; 4],
+    buf_type: i32,
+    buf: *mut std::ffi::c_void,
+    buf_bytes: usize,
+    threads: u32,
+) -> i32 {
     guard(|| {
         // SAFETY: null or an open handle.
         let Some(f) = (unsafe { file.as_ref() }) else {
@@ -612,6 +678,7 @@ pub unsafe extern "C" fn vtz_read(
             width: width as usize,
             height: height as usize,
         });
+        opts.overview = (level > 0).then_some(level);
         opts.threads = threads as usize;
         dec.options(opts);
         let dec = &mut *dec;

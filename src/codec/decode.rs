@@ -92,7 +92,13 @@ pub(crate) fn decode_reader<R: Read + Seek>(
         .ok_or_else(|| Error::invalid(format!("the file has no section {idx}")))?
         .clone();
     let (w, h) = (header.width as usize, header.height as usize);
-    let win = window(opts, w, h)?;
+    let overview = super::overview::check(opts, w, h, rd.limits())?;
+    // An overview's window is in its own samples; the method decodes the whole raster.
+    let win = if overview.is_some() {
+        Window::full(w, h)
+    } else {
+        window(opts, w, h)?
+    };
     if !entry.kind.may_be_primary() && methods::by_section(entry.kind).is_none() {
         let methods: Vec<String> = rd
             .entries()
@@ -131,6 +137,7 @@ pub(crate) fn decode_reader<R: Read + Seek>(
         || scale.is_some()
         || opts.sites.is_some()
         || opts.levels.is_some()
+        || overview.is_some()
         || (win.width, win.height) != (w, h)
     {
         gdal_metadata = gdal_metadata.map(|x| crate::formats::without_statistics(&x).into_owned());
@@ -147,6 +154,34 @@ pub(crate) fn decode_reader<R: Read + Seek>(
         base: None,
         progress,
     };
+    if let Some(req) = overview {
+        let k = req.k;
+        let mut data = method.decode_decimated(&job, k)?;
+        if let Some(f) = &flat {
+            let (st, ow) = (1usize << k, req.width);
+            for (j, o) in data.iter_mut().enumerate() {
+                if let Some(v) = f.value_at((j / ow) * st * w + (j % ow) * st) {
+                    *o = v;
+                }
+            }
+        }
+        let mut r = Raster {
+            width: req.width,
+            height: req.height,
+            data,
+            mask: mask.map(|m| methods::decimate(&m, w, h, k)),
+            nodata: header.nodata,
+            sample_type: header.sample_type,
+            mapping: header.mapping,
+            georef: header
+                .georef
+                .as_ref()
+                .map(|g| super::overview::georef(g, k)),
+            gdal_metadata,
+        };
+        r.normalize_mask();
+        return Ok(super::overview::crop(r, req.window));
+    }
     if let Some((s, ow, oh)) = scale {
         if let Some(r) = method.decode_scaled(&job, s.num, s.den, (ow, oh))? {
             return Ok(scaled_raster(r, &header, flat.as_ref(), s, gdal_metadata));

@@ -7,6 +7,7 @@ mod decode;
 mod encode;
 pub mod mesh;
 mod options;
+mod overview;
 pub mod points;
 mod rate;
 mod resample;
@@ -694,9 +695,9 @@ impl<R: Read + Seek> Decoder<R> {
                  sites (the other methods are coded against their own surface)",
             ));
         }
-        if self.opts.window.is_some() || self.opts.scale.is_some() {
+        if self.opts.window.is_some() || self.opts.scale.is_some() || self.opts.overview.is_some() {
             return Err(Error::invalid(
-                "another surface than sibson decodes the whole grid (no window or scale)",
+                "another surface than sibson decodes the whole grid (no window, scale or overview)",
             ));
         }
         let all = self.sites()?;

@@ -229,6 +229,15 @@ pub struct DecodeOptions {
     /// every other section and a tiled file interpolate the decoded samples (bicubic; the
     /// README's `--scale`). A scale of 1 is the plain decode.
     pub scale: Option<Scale>,
+    /// Decode overview level K ≥ 1 (GDAL's overviews, `vtz decode --overview K`):
+    /// ⌈w/2^K⌉ × ⌈h/2^K⌉ samples, pixel size × 2^K, the same corner; `window` is then in
+    /// the overview's samples. Sample (x, y) is a decoded sample of the source at (x·2^K,
+    /// y·2^K): an untiled file's full decode there, bit for bit; in a tiled file, the
+    /// decode of the tile whose core holds that position, at the point of the tile's own
+    /// 2^K lattice nearest it (at most 2^(K−1) samples away; no blending across tile
+    /// margins). The residual layer's interpolation codings decode only their coarse
+    /// levels for it (about 1/4^K of the work); other methods decode in full.
+    pub overview: Option<u32>,
     /// Tiled files: a tile that fails its checksum or its decode becomes nodata (listed by
     /// [`Decoder::skipped`](crate::Decoder::skipped)) instead of failing the decode.
     pub skip_corrupt: bool,

@@ -47,7 +47,7 @@ pub(crate) fn threads_for(n: usize) -> usize {
     }
 }
 
-fn pool(threads: usize) -> Result<rayon::ThreadPool> {
+pub(crate) fn pool(threads: usize) -> Result<rayon::ThreadPool> {
     crate::methods::thread_pool(threads_for(threads))
 }
 
@@ -284,6 +284,12 @@ pub(crate) fn decode_bands<R: Read + Seek>(
             sink(decode::decode_reader(c, opts, progress)?)?;
             Ok(Vec::new())
         }
+        Opened::Tiled(t) if opts.overview.is_some() => {
+            // An overview is one band: its window is checked against the limits whole.
+            let (r, skipped) = super::overview::decode_tiled(t, opts, progress)?;
+            sink(r)?;
+            Ok(skipped)
+        }
         Opened::Tiled(t) => decode_tiles(t, opts, sink, progress),
     }
 }
@@ -296,15 +302,8 @@ struct Decoded {
     wx: Vec<u64>,
 }
 
-/// Decode a window of a tiled file band by band: a few rows of tiles at a time are read
-/// (one reader) and decoded (every thread), and each band of the window is blended from
-/// them, its rows side by side.
-fn decode_tiles<R: Read + Seek>(
-    rd: &mut TiledReader<R>,
-    opts: &DecodeOptions,
-    sink: &mut dyn FnMut(Raster) -> Result<()>,
-    progress: &(dyn Fn(f64) + Sync),
-) -> Result<Vec<String>> {
+/// What a tiled file's decode cannot do: a sites prefix, a section by index.
+pub(crate) fn check_tiled_options(opts: &DecodeOptions) -> Result<()> {
     if opts.sites.is_some() || opts.levels.is_some() {
         return Err(Error::invalid(
             "--sites and --level need an untiled file (each tile has its own sites)",
@@ -315,6 +314,19 @@ fn decode_tiles<R: Read + Seek>(
             "a tiled file's tiles have their own directories: choose a section by method name",
         ));
     }
+    Ok(())
+}
+
+/// Decode a window of a tiled file band by band: a few rows of tiles at a time are read
+/// (one reader) and decoded (every thread), and each band of the window is blended from
+/// them, its rows side by side.
+fn decode_tiles<R: Read + Seek>(
+    rd: &mut TiledReader<R>,
+    opts: &DecodeOptions,
+    sink: &mut dyn FnMut(Raster) -> Result<()>,
+    progress: &(dyn Fn(f64) + Sync),
+) -> Result<Vec<String>> {
+    check_tiled_options(opts)?;
     let header = rd.header().clone();
     let grid = rd.grid();
     let (w, h) = (header.width as usize, header.height as usize);
@@ -573,6 +585,9 @@ pub(crate) fn decode_all<R: Read + Seek>(
 ) -> Result<(Raster, Vec<String>)> {
     let header = match rd {
         Opened::Untiled(c) => return Ok((decode::decode_reader(c, opts, progress)?, Vec::new())),
+        Opened::Tiled(t) if opts.overview.is_some() => {
+            return super::overview::decode_tiled(t, opts, progress);
+        }
         Opened::Tiled(t) => t.header().clone(),
     };
     let (w, h) = (header.width as usize, header.height as usize);

@@ -210,6 +210,19 @@ pub(crate) trait Representation: Sync {
         }
         Ok(crop(&full, w, job.window))
     }
+    /// The decoded samples at every 2^`j`-th row and column (rows and columns 0, 2^j, …:
+    /// ⌈w/2^j⌉ × ⌈h/2^j⌉ values), exactly the full decode's there. A method whose coding has
+    /// coarse levels decodes only those (the residual layer's interpolation codings); the
+    /// others decode everything and keep every 2^j-th sample.
+    fn decode_decimated(&self, job: &DecodeJob, j: u32) -> Result<Vec<f64>> {
+        let full = self.decode_full(job)?;
+        Ok(decimate(
+            &full,
+            job.header.width as usize,
+            job.header.height as usize,
+            j,
+        ))
+    }
     /// Whether the payload is progressive (a prefix of `--sites N` / `--level K` decodes).
     fn progressive(&self) -> bool {
         false
@@ -414,6 +427,16 @@ pub(crate) fn by_section(kind: SectionKind) -> Option<&'static dyn Representatio
 }
 
 /// Crop a full decode to a window.
+/// Every 2^`j`-th sample of every 2^`j`-th row of a `w` × `h` raster (from row and column 0).
+pub(crate) fn decimate<T: Copy>(v: &[T], w: usize, h: usize, j: u32) -> Vec<T> {
+    let s = 1usize << j;
+    let mut out = Vec::with_capacity(w.div_ceil(s) * h.div_ceil(s));
+    for y in (0..h).step_by(s) {
+        out.extend(v[y * w..y * w + w].iter().step_by(s).copied());
+    }
+    out
+}
+
 pub(crate) fn crop<T: Copy>(v: &[T], width: usize, win: Window) -> Vec<T> {
     let mut out = Vec::with_capacity(win.width * win.height);
     for y in win.y..win.y + win.height {

@@ -32,6 +32,13 @@ pub struct Args {
     /// methods and tiled files by bicubic interpolation of the decoded samples.
     #[arg(long, value_name = "S")]
     pub scale: Option<String>,
+    /// Decode overview K ≥ 1 (what GDAL shows at small scales): every 2^K-th sample of
+    /// every 2^K-th row, ⌈w/2^K⌉ × ⌈h/2^K⌉, pixels 2^K times larger. The residual layer
+    /// decodes only its coarse levels for it (about 1/4^K of the work); --window is then in
+    /// the overview's samples. A tiled file's sample comes from the tile whose core holds it,
+    /// at that tile's nearest lattice point.
+    #[arg(long, value_name = "K", conflicts_with = "scale")]
+    pub overview: Option<u32>,
     /// Threads (default: all cores); the output is the same for any count.
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub threads: usize,
@@ -90,6 +97,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     opts.levels = a.level;
     opts.window = a.window.as_deref().map(str::parse).transpose()?;
     opts.scale = a.scale.as_deref().map(str::parse).transpose()?;
+    opts.overview = a.overview;
     opts.threads = a.threads;
     if a.threads > 0 {
         // The GeoTIFF writer compresses its tiles on rayon's global pool: keep it to the
@@ -121,6 +129,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     if d.info().tiles.is_some()
         && out_format == vtz::formats::Format::GeoTiff
         && opts.scale.is_none()
+        && opts.overview.is_none()
     {
         // A tiled file to GeoTIFF: band by band into a tiled GeoTIFF, never the whole raster.
         let (w, h) = (d.info().width as usize, d.info().height as usize);

@@ -133,11 +133,14 @@ fn fit(p: &Plane, s: usize, pass: usize) -> [i16; NF] {
 
 /// Code (encoder) or decode every sample of the plane. `weights` holds the least-squares
 /// weights per (level, pass), finest level last: the encoder fills it, the decoder reads it.
+/// A decoder that needs only the samples at every 2^`stop`-th row and column stops after the
+/// level that completes them (`stop` 0: every level; the coder is then not at its end).
 pub fn run<C: BinCoder>(
     p: &Plane,
     cfg: Config,
     weights: &mut Vec<[i16; NF]>,
     coder: &mut C,
+    stop: u32,
 ) -> Result<State> {
     let (w, h) = (p.width, p.height);
     let mut st = State::new(w * h);
@@ -199,6 +202,10 @@ pub fn run<C: BinCoder>(
     // 2. The levels, coarse to fine.
     let mut next_weights = 0;
     for l in (1..=cfg.levels).rev() {
+        if l <= stop {
+            // Level l fills the samples of step 2^(l−1): finer than the stop.
+            break;
+        }
         let s = 1usize << (l - 1);
         let lvl = (l as usize - 1).min(LEVELS - 2) as u8;
         let bin = bin_of(l);

@@ -40,11 +40,16 @@ impl Representation for Residual {
     }
     fn decode_full(&self, job: &DecodeJob) -> Result<Vec<f64>> {
         let all = Window::full(job.header.width as usize, job.header.height as usize);
-        decode(job.payload, job.header, job.mask, job.flat, all)
+        decode(job.payload, job.header, job.mask, job.flat, all, 0)
+    }
+    /// The interpolation codings decode only the levels down to step 2^j.
+    fn decode_decimated(&self, job: &DecodeJob, j: u32) -> Result<Vec<f64>> {
+        let all = Window::full(job.header.width as usize, job.header.height as usize);
+        decode(job.payload, job.header, job.mask, job.flat, all, j)
     }
     /// The window alone: the fast coding decodes only the bands its rows need.
     fn decode(&self, job: &DecodeJob) -> Result<Vec<f64>> {
-        decode(job.payload, job.header, job.mask, job.flat, job.window)
+        decode(job.payload, job.header, job.mask, job.flat, job.window, 0)
     }
     fn has_stats(&self) -> bool {
         true

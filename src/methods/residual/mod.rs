@@ -365,7 +365,7 @@ fn code(p: &Plane, pred: Predictor, s: &Setup, exceptions: &[u8]) -> Result<(Vec
         Predictor::Fast(_) => unreachable!("coded above"),
         Predictor::Interp(cfg) => {
             let mut wts = Vec::new();
-            let st = interp::run(p, cfg, &mut wts, &mut c)?;
+            let st = interp::run(p, cfg, &mut wts, &mut c, 0)?;
             let flat: Vec<i16> = wts.iter().flatten().copied().collect();
             (PRED_INTERP, cfg.levels as u8, (wts.len(), flat), st)
         }
@@ -542,12 +542,16 @@ fn read_varint(rd: &mut ByteReader) -> Result<u64> {
 /// Decode the window `win` of a residual payload. `flat` holds the samples known by other
 /// means (flat regions). The whole payload is read and checked; the fast coding decodes
 /// only the bands the window's rows need, the range-coded ones (one stream) everything.
+/// With `stop` above 0 the result is instead the samples at every 2^stop-th row and column
+/// of the whole raster (`win` is then the whole raster), and the interpolation codings
+/// decode only the levels that reach them.
 pub(crate) fn decode(
     payload: &[u8],
     header: &Header,
     mask: Option<&[bool]>,
     flat: Option<&Flat>,
     win: Window,
+    stop: u32,
 ) -> Result<Vec<f64>> {
     let mut rd = ByteReader::new(payload, "residual section");
     let Head {
@@ -648,7 +652,7 @@ pub(crate) fn decode(
             .chunks_exact(fast::NW)
             .map(|c| c.try_into().expect("NW weights"))
             .collect();
-        fast::decode(&mut rd, &p, f.levels, f.tighten, &wts, max_bin, win.y..win.y + win.height)?
+        fast::decode(&mut rd, &p, f.levels, f.tighten, &wts, max_bin, win.y..win.y + win.height, stop)?
     } else {
     // Codings 0 and 1 are one range-coded stream: every sample is decoded, whatever the
     // window.
@@ -665,7 +669,7 @@ pub(crate) fn decode(
                 .chunks_exact(interp::NF)
                 .map(|c| c.try_into().expect("NF weights"))
                 .collect();
-            interp::run(&p, cfg, &mut wts, &mut c)?
+            interp::run(&p, cfg, &mut wts, &mut c, stop)?
         }
         Predictor::Weighted => {
             let wts: Vec<[i16; weighted::NF]> = flat_w
@@ -675,11 +679,36 @@ pub(crate) fn decode(
             weighted::run(&p, &wts, &mut c)?
         }
     };
-    c.dec.finish()?;
+    if stop == 0 || matches!(cfg, Predictor::Weighted) {
+        // A decode that stopped after a coarse level has not reached the stream's end.
+        c.dec.finish()?;
+    }
     st.rec
     };
     let fill = header.nodata.unwrap_or(f64::NAN);
-    let mut out = lattice_values(&rec, &kinds, fill, domain, header, win);
+    if stop > 0 {
+        // Every 2^stop-th sample of every 2^stop-th row, as the full decode has them.
+        let s = 1usize << stop;
+        let (ow, oh) = (w.div_ceil(s), h.div_ceil(s));
+        let rec = crate::methods::decimate(&rec, w, h, stop);
+        let kinds = if kinds.is_empty() { kinds } else { crate::methods::decimate(&kinds, w, h, stop) };
+        let mut out = lattice_values(&rec, &kinds, fill, domain, header, ow, Window::full(ow, oh));
+        if let Some(f) = flat {
+            for (j, o) in out.iter_mut().enumerate() {
+                if let Some(v) = f.value_at((j / ow) * s * w + (j % ow) * s) {
+                    *o = v;
+                }
+            }
+        }
+        for (i, v) in exc {
+            let (x, y) = (i % w, i / w);
+            if x % s == 0 && y % s == 0 {
+                out[(y / s) * ow + x / s] = v;
+            }
+        }
+        return Ok(out);
+    }
+    let mut out = lattice_values(&rec, &kinds, fill, domain, header, w, win);
     if let Some(f) = flat {
         f.overwrite(&mut out, w, (win.x, win.y, win.width, win.height));
     }
@@ -692,13 +721,13 @@ pub(crate) fn decode(
     Ok(out)
 }
 
-/// The values of the window `win`'s coded samples from their lattice indices (`kinds`
-/// empty: all coded; a skipped sample gets `fill`): `finish_value(domain.raw(k))`, without the
+/// The values of the window `win`'s coded samples from their lattice indices (planes `w`
+/// wide; `kinds` empty: all coded; a skipped sample gets `fill`): `finish_value(domain.raw(k))`, without the
 /// multiplication, division and rounding where the lattice is the integers and the sample
 /// type's codes are the values (the same result: every step is exact). The case is chosen
 /// once, so the loop over the samples holds no branch but the kinds'.
-fn lattice_values(rec: &[i64], kinds: &[u8], fill: f64, domain: Domain, header: &Header, win: Window) -> Vec<f64> {
-    let at = (header.width as usize, win);
+fn lattice_values(rec: &[i64], kinds: &[u8], fill: f64, domain: Domain, header: &Header, w: usize, win: Window) -> Vec<f64> {
+    let at = (w, win);
     let ident = domain.mul == 1.0 && domain.div == 1.0 && domain.offset == 0.0;
     let int_codes = (header.mapping.scale == 1.0 && header.mapping.offset == 0.0)
         .then(|| header.sample_type.int_range())

@@ -228,7 +228,10 @@ fn needed(passes: &[Pass], bands: &[Vec<(usize, usize)>], h: usize, rows: Range<
 /// Decode the plane from the rest of the section (`rd` just after the exceptions).
 /// `values` holds the fixed samples' values; `max_bin` bounds a bin's magnitude. Only the
 /// raster rows `rows` are sure to be reconstructed: the bands they do not need are
-/// length-checked, not decoded ([`needed`]; the others' samples are left 0).
+/// length-checked, not decoded ([`needed`]; the others' samples are left 0). With `stop`
+/// above 0 only the passes of steps ≥ 2^stop run: the samples at every 2^stop-th row and
+/// column are reconstructed, no other.
+#[allow(clippy::too_many_arguments)]
 pub fn decode(
     rd: &mut ByteReader,
     p: &Plane,
@@ -237,6 +240,7 @@ pub fn decode(
     weights: &[[i16; NW]],
     max_bin: u64,
     rows: Range<usize>,
+    stop: u32,
 ) -> Result<Vec<i64>> {
     let (w, h) = (p.width, p.height);
     let band_log2 = rd.u8("band size")?;
@@ -303,6 +307,7 @@ pub fn decode(
             // All-zero weights correct nothing: the plain prediction (the same values).
             pass.weights = next_w.next().copied().filter(|w| *w != [0; NW]);
         }
+        let pick = if pass.kind != Kind::Anchor && pass.s < 1 << stop { 0..0 } else { pick };
         let mine = &slices[next + pick.start..next + pick.end];
         next += bands.len();
         run_pass(
@@ -409,13 +414,13 @@ mod tests {
             let max_bin = (p.hi - p.lo) as u64 / super::super::narrowest_bin(bin, 4, tighten) as u64 + 1;
             for threads in [1, 2, 3] {
                 let back = crate::methods::with_threads(threads, || {
-                    decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, &wts, max_bin, 0..h)
+                    decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, &wts, max_bin, 0..h, 0)
                 })
                 .unwrap();
                 assert_eq!(back, rec, "bin {bin}, {threads} threads");
             }
             for cut in (0..bytes.len()).step_by(7) {
-                let r = decode(&mut ByteReader::new(&bytes[..cut], "t"), &p, 4, tighten, &wts, max_bin, 0..h);
+                let r = decode(&mut ByteReader::new(&bytes[..cut], "t"), &p, 4, tighten, &wts, max_bin, 0..h, 0);
                 assert!(r.is_err(), "bin {bin}: a prefix of {cut} bytes decoded");
             }
             // One flipped bit in the streams decodes to an error or other samples, never a
@@ -423,7 +428,7 @@ mod tests {
             for k in (bytes.len() / 2..bytes.len()).step_by(13) {
                 let mut bad = bytes.clone();
                 bad[k] ^= 0x10;
-                let _ = decode(&mut ByteReader::new(&bad, "t"), &p, 4, tighten, &wts, max_bin, 0..h);
+                let _ = decode(&mut ByteReader::new(&bad, "t"), &p, 4, tighten, &wts, max_bin, 0..h, 0);
             }
         }
     }
@@ -480,7 +485,7 @@ mod tests {
                 }
             }
             let max_bin = (p.hi - p.lo) as u64 / super::super::narrowest_bin(bin, 4, tighten) as u64 + 1;
-            let dec = |rows: Range<usize>| decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, &wts, max_bin, rows);
+            let dec = |rows: Range<usize>| decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, &wts, max_bin, rows, 0);
             assert_eq!(dec(0..h).unwrap(), rec, "{what}: the full decode");
             // Every single row, the first and last few, and random ranges.
             let mut windows: Vec<Range<usize>> = (0..h).map(|y| y..y + 1).collect();
