@@ -4,9 +4,15 @@
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 profile="${VTZ_CAPI_PROFILE:-release}"
-cargo build --profile "$profile" -p vtz-capi --manifest-path "$here/../Cargo.toml"
 target="${CARGO_TARGET_DIR:-$here/../target}"
-lib="$target/$profile/libvtz_capi.a"
+if [ -n "${VTZ_CAPI_LIB:-}" ]; then
+  # A static library already built (CI passes the one `cargo build --profile ci` made).
+  lib="$VTZ_CAPI_LIB"
+  [ -f "$lib" ] || { echo "run-c-test: VTZ_CAPI_LIB=$lib does not exist" >&2; exit 1; }
+else
+  cargo build --profile "$profile" -p vtz-capi --manifest-path "$here/../Cargo.toml"
+  lib="$target/$profile/libvtz_capi.a"
+fi
 out="$target/c-test"
 mkdir -p "$out"
 cc -std=c11 -Wall -Wextra -Werror -O1 -I "$here/include" "$here/tests/capi_test.c" \

@@ -157,6 +157,19 @@ def same_samples(x, y):
     if a.shape != b.shape or not arrays_equal(a, b):
         fail(f"{x} / {y}: samples differ")
 
+def overviews(vtz):
+    """The band lists the format's overviews: level K is ceil(size / 2^K), down to ~64."""
+    a = info(vtz)
+    w, h = a["size"]
+    got = [tuple(o["size"]) for o in a["bands"][0].get("overviews", [])]
+    want = []
+    k = 1
+    while -(-max(w, h) // (1 << k)) >= 64:
+        want.append((-(-w // (1 << k)), -(-h // (1 << k))))
+        k += 1
+    if got != want:
+        fail(f"{vtz}: overviews {got}, expected {want}")
+
 def windows(vtz, ref):
     """gdal_translate -srcwin, gdallocationinfo and osgeo ReadAsArray windows equal crops."""
     full = gdal.Open(ref).ReadAsArray()
@@ -185,9 +198,12 @@ def windows(vtz, ref):
         if not np.array_equal(arr64, crop.astype(np.float64), equal_nan=True):
             fail(f"{vtz}: ReadAsArray({x}, {y}, {w}, {h}, Float64) differs from the crop")
     # A resampled read goes through GDAL's default path: compare with GDAL's own result
-    # on the reference.
+    # on the reference (without the format's overviews, which the reference has not).
     refds = gdal.Open(ref)  # held: a band outlives no dataset in GDAL 3.6's Python
-    if not arrays_equal(band.ReadAsArray(0, 0, W, H, W // 3, H // 3),
+    gdal.SetConfigOption("VTZ_OVERVIEWS", "NO")
+    plain = gdal.Open(vtz)
+    gdal.SetConfigOption("VTZ_OVERVIEWS", None)
+    if not arrays_equal(plain.GetRasterBand(1).ReadAsArray(0, 0, W, H, W // 3, H // 3),
                         refds.GetRasterBand(1).ReadAsArray(0, 0, W, H, W // 3, H // 3)):
         fail(f"{vtz}: a decimated read differs from the reference's")
     for (x, y) in [(0, 0), (min(W - 1, bw), min(H - 1, bh)), (W - 1, H - 1), (bw - 1, min(H - 1, bh))]:
@@ -285,6 +301,7 @@ if __name__ == "__main__":
     elif cmd == "same_samples": same_samples(*args)
     elif cmd == "same_crs": same_crs(*args)
     elif cmd == "windows": windows(*args)
+    elif cmd == "overviews": overviews(*args)
     elif cmd == "bound": bound(args[0], args[1], float(args[2]))
     elif cmd == "corrupt_offset": corrupt_offset(*args)
     elif cmd == "fuzz": fuzz(args[1:], int(args[0]))
@@ -370,6 +387,30 @@ for n in kauai_v1 kauai_v2; do
     "$PY" chk.py same_samples ${n}_small.tif ${n}_ovr1.tif
     ok "$n: a 301 x 301 read is overview 2, and nothing of the .vtz was decoded for it"
 done
+
+echo "   overviews from the format itself (no .ovr): overview K is vtz decode --overview K, and a"
+echo "   reduced read decodes the overview level, never the full resolution"
+for n in $names; do
+    "$PY" chk.py overviews $n.vtz
+    for k in 1 2; do
+        "$VTZ" -q decode $n.vtz -o $n.ov$k.tif --overview $k
+        gdal_translate -q -ovr $((k - 1)) $n.vtz $n.gov$k.tif
+        "$PY" chk.py same_samples $n.gov$k.tif $n.ov$k.tif
+    done
+    ok "$n: overviews 1 and 2 through GDAL equal vtz decode --overview 1 and 2 bit for bit"
+done
+for n in kauai_v1 kauai_v2; do
+    gdal_translate --debug on -q -outsize 301 301 $n.vtz ${n}_small_own.tif 2>debug.log
+    if grep "vtz_read of" debug.log | grep -vq "level 2,"; then
+        echo "FAIL: $n: a 301 x 301 read decoded another level than overview 2: $(grep 'vtz_read of' debug.log | grep -v 'level 2,' | head -1)" >&2
+        exit 1
+    fi
+    grep -q "vtz_read of level 2," debug.log || { echo "FAIL: $n: a 301 x 301 read did not read overview 2" >&2; exit 1; }
+    "$PY" chk.py same_samples ${n}_small_own.tif $n.gov2.tif
+    ok "$n: a 301 x 301 read is overview 2, decoded at that level only"
+done
+VTZ_OVERVIEWS=NO gdalinfo kauai_v1.vtz | grep -q "Overviews" && { echo "FAIL: VTZ_OVERVIEWS=NO still shows overviews" >&2; exit 1; }
+ok "VTZ_OVERVIEWS=NO turns them off"
 
 step "5. gdal_translate -of VTZ: the bound holds, vtz verify passes, LOSSLESS=YES round-trips exactly"
 for s in kauai float plain; do

@@ -17,6 +17,12 @@
  * - Blocks: a version-2 tile is a GDAL block (edge blocks padded with nodata, or 0), so a
  *   read decodes only the tiles it touches. A version-1 file is decoded whole on the
  *   first read and cached; its blocks are strips of full rows served from that cache.
+ * - Overviews from the format itself (when the file has no external .ovr; the
+ *   VTZ_OVERVIEWS=NO configuration option turns them off): levels 1, 2, ... down to about
+ *   64 samples, level K holding every 2^K-th sample of every 2^K-th row
+ *   (vtz_read_overview), for which the residual layer decodes only its coarse levels.
+ *   They are VTZRasterBand objects of their own level: blocks of a tile's core at that
+ *   level (tiled files) or strips served from a whole-level cache (untiled files).
  * - Full-resolution RasterIO: a version-1 read copies from the cache; a version-2 read
  *   whose tiles are not all cached is either one vtz_read of exactly the window (a small
  *   window: vtz decodes only the rows and columns it needs) or one vtz_read of its
@@ -39,6 +45,7 @@
 #include <climits>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <new>
 #include <string>
 #include <vector>
@@ -144,13 +151,18 @@ class VTZDataset final : public GDALPamDataset
     int m_nDTSize = 0;
     OGRSpatialReference m_oSRS{};
 
-    // Version 1: the whole raster, decoded on the first read.
-    std::vector<GByte> m_abyCache{};
-    bool m_bCacheFailed = false;
+    // Version 1: the whole raster of each level (0: full resolution, K: overview K),
+    // decoded on the first read of that level.
+    std::vector<std::vector<GByte>> m_aabyCache{};
+    std::vector<bool> m_abCacheFailed{};
+    // Overview levels 1, 2, ... (from the format; empty when VTZ_OVERVIEWS=NO).
+    std::vector<std::unique_ptr<VTZRasterBand>> m_apoOverviews{};
+    // While gdaladdo builds external overviews, the band shows only those.
+    bool m_bBuildingOverviews = false;
 
-    bool EnsureCache();
-    CPLErr ReadWindow(int nXOff, int nYOff, int nXSize, int nYSize, void *pData,
-                      GDALDataType eBufType, GSpacing nPixelSpace,
+    const GByte *EnsureCache(int nLevel);
+    CPLErr ReadWindow(int nLevel, int nXOff, int nYOff, int nXSize, int nYSize,
+                      void *pData, GDALDataType eBufType, GSpacing nPixelSpace,
                       GSpacing nLineSpace);
     void ApplyGDALMetadata(const char *pszXML);
 
@@ -159,6 +171,21 @@ class VTZDataset final : public GDALPamDataset
     ~VTZDataset() override;
 
     CPLErr GetGeoTransform(double *padfTransform) override;
+#if GDAL_VERSION_NUM >= GDAL_COMPUTE_VERSION(3, 6, 0)
+    CPLErr IBuildOverviews(const char *pszResampling, int nOverviews,
+                           const int *panOverviewList, int nListBands,
+                           const int *panBandList, GDALProgressFunc pfnProgress,
+                           void *pProgressData, CSLConstList papszOptions) override
+    {
+        // GDAL's external overview builder expects the band's overviews to be the .ovr's.
+        m_bBuildingOverviews = true;
+        const CPLErr eErr = GDALPamDataset::IBuildOverviews(
+            pszResampling, nOverviews, panOverviewList, nListBands, panBandList,
+            pfnProgress, pProgressData, papszOptions);
+        m_bBuildingOverviews = false;
+        return eErr;
+    }
+#endif
     const OGRSpatialReference *GetSpatialRef() const override;
 
     static int Identify(GDALOpenInfo *poOpenInfo);
@@ -177,6 +204,8 @@ class VTZRasterBand final : public GDALPamRasterBand
 {
     friend class VTZDataset;
 
+    // 0: the full-resolution band; K > 0: overview K (every 2^K-th sample).
+    int m_nLevel = 0;
     bool m_bHasNoData = false;
     double m_dfNoData = 0.0;
     // From the GDAL metadata (role="unittype" / "offset" / "scale").
@@ -189,7 +218,9 @@ class VTZRasterBand final : public GDALPamRasterBand
     CPLErr PrefetchTiles(int nTX0, int nTY0, int nTX1, int nTY1);
 
   public:
-    VTZRasterBand(VTZDataset *poDS, int nBlockX, int nBlockY);
+    VTZRasterBand(VTZDataset *poDS, int nBlockX, int nBlockY, int nLevel = 0);
+    int GetOverviewCount() override;
+    GDALRasterBand *GetOverview(int i) override;
 
     CPLErr IReadBlock(int nBlockXOff, int nBlockYOff, void *pImage) override;
     CPLErr IRasterIO(GDALRWFlag eRWFlag, int nXOff, int nYOff, int nXSize,
@@ -209,10 +240,17 @@ class VTZRasterBand final : public GDALPamRasterBand
     double GetScale(int *pbSuccess = nullptr) override;
 };
 
-VTZRasterBand::VTZRasterBand(VTZDataset *poDSIn, int nBlockX, int nBlockY)
+VTZRasterBand::VTZRasterBand(VTZDataset *poDSIn, int nBlockX, int nBlockY,
+                             int nLevel)
+    : m_nLevel(nLevel)
 {
     poDS = poDSIn;
     nBand = 1;
+    // Overview K has ceil(size / 2^K) samples each way.
+    nRasterXSize = static_cast<int>(
+        (poDSIn->m_sInfo.width + (uint64_t{1} << nLevel) - 1) >> nLevel);
+    nRasterYSize = static_cast<int>(
+        (poDSIn->m_sInfo.height + (uint64_t{1} << nLevel) - 1) >> nLevel);
     eDataType = poDSIn->m_eDT;
     nBlockXSize = nBlockX;
     nBlockYSize = nBlockY;
@@ -221,6 +259,29 @@ VTZRasterBand::VTZRasterBand(VTZDataset *poDSIn, int nBlockX, int nBlockY)
         m_bHasNoData = true;
         m_dfNoData = poDSIn->m_sInfo.nodata;
     }
+}
+
+/// External overviews (.ovr, gdaladdo) when there are, else the format's own levels.
+int VTZRasterBand::GetOverviewCount()
+{
+    if (m_nLevel > 0)
+        return 0;
+    const int nExternal = GDALPamRasterBand::GetOverviewCount();
+    if (nExternal > 0 || static_cast<VTZDataset *>(poDS)->m_bBuildingOverviews)
+        return nExternal;
+    return static_cast<int>(
+        static_cast<VTZDataset *>(poDS)->m_apoOverviews.size());
+}
+
+GDALRasterBand *VTZRasterBand::GetOverview(int i)
+{
+    if (m_nLevel > 0)
+        return nullptr;
+    if (GDALPamRasterBand::GetOverviewCount() > 0 ||
+        static_cast<VTZDataset *>(poDS)->m_bBuildingOverviews)
+        return GDALPamRasterBand::GetOverview(i);
+    const auto &apoOv = static_cast<VTZDataset *>(poDS)->m_apoOverviews;
+    return i >= 0 && i < static_cast<int>(apoOv.size()) ? apoOv[i].get() : nullptr;
 }
 
 /// Fill `nCount` samples of the band's type with nodata (0 without one).
@@ -248,18 +309,18 @@ CPLErr VTZRasterBand::IReadBlock(int nBlockXOff, int nBlockYOff, void *pImage)
 
     if (!poGDS->m_sInfo.tiled)
     {
-        // A strip of full rows out of the whole-raster cache.
-        if (!poGDS->EnsureCache())
+        // A strip of full rows out of the whole-level cache.
+        const GByte *pabyCache = poGDS->EnsureCache(m_nLevel);
+        if (pabyCache == nullptr)
             return CE_Failure;
         memcpy(pImage,
-               poGDS->m_abyCache.data() + static_cast<size_t>(nY0) *
-                                              nRasterXSize * nDTSize,
+               pabyCache + static_cast<size_t>(nY0) * nRasterXSize * nDTSize,
                static_cast<size_t>(nH) * nRasterXSize * nDTSize);
         return CE_None;
     }
 
     // One tile: decode exactly its samples (a full-width block straight into pImage).
-    return poGDS->ReadWindow(nX0, nY0, nW, nH, pImage, eDataType, nDTSize,
+    return poGDS->ReadWindow(m_nLevel, nX0, nY0, nW, nH, pImage, eDataType, nDTSize,
                              static_cast<GSpacing>(nBlockXSize) * nDTSize);
 }
 
@@ -291,13 +352,14 @@ CPLErr VTZRasterBand::IRasterIO(GDALRWFlag eRWFlag, int nXOff, int nYOff,
             return GDALPamRasterBand::IRasterIO(
                 eRWFlag, nXOff, nYOff, nXSize, nYSize, pData, nBufXSize,
                 nBufYSize, eBufType, nPixelSpace, nLineSpace, psExtraArg);
-        if (!poGDS->EnsureCache())
+        const GByte *pabyCache = poGDS->EnsureCache(m_nLevel);
+        if (pabyCache == nullptr)
             return CE_Failure;
         const int nDTSize = poGDS->m_nDTSize;
         for (int iY = 0; iY < nYSize; ++iY)
         {
             const GByte *pabySrc =
-                poGDS->m_abyCache.data() +
+                pabyCache +
                 (static_cast<size_t>(nYOff + iY) * nRasterXSize + nXOff) * nDTSize;
             GDALCopyWords64(pabySrc, eDataType, nDTSize,
                             static_cast<GByte *>(pData) + iY * nLineSpace,
@@ -331,8 +393,8 @@ CPLErr VTZRasterBand::IRasterIO(GDALRWFlag eRWFlag, int nXOff, int nYOff,
         const bool bFits =
             nTileSamples * poGDS->m_nDTSize <= GDALGetCacheMax64() / 4;
         if (bFullRes && (nWindowSamples * 4 <= nTileSamples || !bFits))
-            return poGDS->ReadWindow(nXOff, nYOff, nXSize, nYSize, pData,
-                                     eBufType, nPixelSpace, nLineSpace);
+            return poGDS->ReadWindow(m_nLevel, nXOff, nYOff, nXSize, nYSize,
+                                     pData, eBufType, nPixelSpace, nLineSpace);
         // Read-ahead: a full-width, full-resolution read is a whole-raster copy's
         // swath (gdal_translate); decoding the following tile rows with it, as many as
         // a quarter of the block cache holds, saves re-decoding the margins between
@@ -408,7 +470,7 @@ CPLErr VTZRasterBand::PrefetchTiles(int nTX0, int nTY0, int nTX1, int nTY1)
         VSI_MALLOC3_VERBOSE(nW, nH, nDTSize));
     if (pabyBuf == nullptr)
         return CE_Failure;
-    if (poGDS->ReadWindow(nX0, nY0, nW, nH, pabyBuf, eDataType, nDTSize,
+    if (poGDS->ReadWindow(m_nLevel, nX0, nY0, nW, nH, pabyBuf, eDataType, nDTSize,
                           static_cast<GSpacing>(nW) * nDTSize) != CE_None)
     {
         VSIFree(pabyBuf);
@@ -496,50 +558,63 @@ double VTZRasterBand::GetScale(int *pbSuccess)
 VTZDataset::~VTZDataset()
 {
     FlushCache(true);
+    m_apoOverviews.clear();
     vtz_close(m_hFile);
 }
 
-/// Decode a version-1 file whole, once. On failure the error is reported on each call.
-bool VTZDataset::EnsureCache()
+/// Decode level nLevel of a version-1 file whole, once (0: the full resolution, K:
+/// overview K); nullptr after reporting why. A failure is reported again on each call.
+const GByte *VTZDataset::EnsureCache(int nLevel)
 {
-    if (!m_abyCache.empty())
-        return true;
-    if (m_bCacheFailed)
+    if (m_aabyCache.size() <= static_cast<size_t>(nLevel))
+    {
+        m_aabyCache.resize(nLevel + 1);
+        m_abCacheFailed.resize(nLevel + 1, false);
+    }
+    std::vector<GByte> &abyCache = m_aabyCache[nLevel];
+    if (!abyCache.empty())
+        return abyCache.data();
+    if (m_abCacheFailed[nLevel])
     {
         CPLError(CE_Failure, CPLE_AppDefined,
                  "vtz: %s: the raster failed to decode before", GetDescription());
-        return false;
+        return nullptr;
     }
-    const size_t nBytes = static_cast<size_t>(nRasterXSize) *
-                          static_cast<size_t>(nRasterYSize) * m_nDTSize;
+    const uint64_t nStep = uint64_t{1} << nLevel;
+    const uint32_t nW = static_cast<uint32_t>((m_sInfo.width + nStep - 1) / nStep);
+    const uint32_t nH = static_cast<uint32_t>((m_sInfo.height + nStep - 1) / nStep);
+    const size_t nBytes = static_cast<size_t>(nW) * nH * m_nDTSize;
     try
     {
-        m_abyCache.resize(nBytes);
+        abyCache.resize(nBytes);
     }
     catch (const std::bad_alloc &)
     {
-        m_bCacheFailed = true;
+        m_abCacheFailed[nLevel] = true;
         CPLError(CE_Failure, CPLE_OutOfMemory,
                  "vtz: cannot allocate %zu bytes to decode %s", nBytes,
                  GetDescription());
-        return false;
+        return nullptr;
     }
-    if (vtz_read(m_hFile, 0, 0, static_cast<uint32_t>(nRasterXSize),
-                 static_cast<uint32_t>(nRasterYSize), m_sInfo.sample_type,
-                 m_abyCache.data(), nBytes, DecodeThreads()) != VTZ_OK)
+    CPLDebug("VTZ", "%s: vtz_read of level %d, 0,0 %ux%u (cached whole)",
+             GetDescription(), nLevel, nW, nH);
+    if (vtz_read_overview(m_hFile, static_cast<uint32_t>(nLevel), 0, 0, nW, nH,
+                          m_sInfo.sample_type, abyCache.data(), nBytes,
+                          DecodeThreads()) != VTZ_OK)
     {
         ReportVtzError(GetDescription());
-        std::vector<GByte>().swap(m_abyCache);
-        m_bCacheFailed = true;
-        return false;
+        std::vector<GByte>().swap(abyCache);
+        m_abCacheFailed[nLevel] = true;
+        return nullptr;
     }
-    return true;
+    return abyCache.data();
 }
 
-/// Decode the window into pData (samples of eBufType at the given spacings): straight
-/// into it when it is a packed buffer of the file's type, else through a scratch buffer.
-CPLErr VTZDataset::ReadWindow(int nXOff, int nYOff, int nXSize, int nYSize,
-                              void *pData, GDALDataType eBufType,
+/// Decode the window of level nLevel (0: the full resolution, K: overview K) into
+/// pData (samples of eBufType at the given spacings): straight into it when it is a
+/// packed buffer of the file's type, else through a scratch buffer.
+CPLErr VTZDataset::ReadWindow(int nLevel, int nXOff, int nYOff, int nXSize,
+                              int nYSize, void *pData, GDALDataType eBufType,
                               GSpacing nPixelSpace, GSpacing nLineSpace)
 {
     const size_t nSamples =
@@ -552,17 +627,22 @@ CPLErr VTZDataset::ReadWindow(int nXOff, int nYOff, int nXSize, int nYSize,
     void *pBuf = bDirect ? pData : VSI_MALLOC_VERBOSE(nBytes);
     if (pBuf == nullptr)
         return CE_Failure;
-    CPLDebug("VTZ", "%s: vtz_read of %d,%d %dx%d", GetDescription(), nXOff, nYOff,
-             nXSize, nYSize);
-    const int rc = vtz_read(m_hFile, static_cast<uint32_t>(nXOff),
+    CPLDebug("VTZ", "%s: vtz_read of level %d, %d,%d %dx%d", GetDescription(),
+             nLevel, nXOff, nYOff, nXSize, nYSize);
+    const int rc = vtz_read_overview(m_hFile, static_cast<uint32_t>(nLevel),
+                            static_cast<uint32_t>(nXOff),
                             static_cast<uint32_t>(nYOff),
                             static_cast<uint32_t>(nXSize),
                             static_cast<uint32_t>(nYSize), m_sInfo.sample_type,
                             pBuf, nBytes, DecodeThreads());
     if (rc != VTZ_OK)
     {
-        ReportVtzError(CPLSPrintf("%s: window %d,%d %dx%d", GetDescription(),
-                                  nXOff, nYOff, nXSize, nYSize));
+        ReportVtzError(nLevel == 0
+                           ? CPLSPrintf("%s: window %d,%d %dx%d", GetDescription(),
+                                        nXOff, nYOff, nXSize, nYSize)
+                           : CPLSPrintf("%s: overview %d, window %d,%d %dx%d",
+                                        GetDescription(), nLevel, nXOff, nYOff,
+                                        nXSize, nYSize));
         if (!bDirect)
             VSIFree(pBuf);
         return CE_Failure;
@@ -761,6 +841,33 @@ GDALDataset *VTZDataset::Open(GDALOpenInfo *poOpenInfo)
             1, std::min<size_t>(poDS->nRasterYSize, (1 << 20) / nRowBytes)));
     }
     poDS->SetBand(1, new VTZRasterBand(poDS.get(), nBlockX, nBlockY));
+    // The format's own overviews, down to about 64 samples along the longer side.
+    if (CPLTestBool(CPLGetConfigOption("VTZ_OVERVIEWS", "YES")))
+    {
+        for (int nLevel = 1; nLevel <= 30; ++nLevel)
+        {
+            const uint64_t nStep = uint64_t{1} << nLevel;
+            const uint64_t nLong = (std::max(sInfo.width, sInfo.height) + nStep - 1) / nStep;
+            if (nLong < 64)
+                break;
+            const int nOvH = static_cast<int>((sInfo.height + nStep - 1) / nStep);
+            const int nOvW = static_cast<int>((sInfo.width + nStep - 1) / nStep);
+            int nOvBX, nOvBY;
+            if (sInfo.tiled)
+            {
+                // A tile's core at this level.
+                nOvBX = static_cast<int>(std::max<uint64_t>(1, (nBlockX + nStep - 1) / nStep));
+                nOvBY = static_cast<int>(std::max<uint64_t>(1, (nBlockY + nStep - 1) / nStep));
+            }
+            else
+            {
+                nOvBX = nOvW;
+                nOvBY = std::max(1, std::min(nOvH, (1 << 20) / (nOvW * poDS->m_nDTSize)));
+            }
+            poDS->m_apoOverviews.push_back(std::make_unique<VTZRasterBand>(
+                poDS.get(), nOvBX, nOvBY, nLevel));
+        }
+    }
 
     // Georeferencing. A CRS text from the file may be anything SetFromUserInput takes:
     // refuse the forms that read files or the network.

@@ -144,6 +144,27 @@ static void test_round_trip_and_windows(void) {
       for (int x = 0; x < 40; x++) same &= win[y * 40 + x] == dec[(41 + y) * W + 37 + x];
     CHECK(same, "window (37, 41, 40, 30) on %u threads is the crop", threads);
   }
+  /* Overview K of an untiled file: the full decode at every 2^K-th row and column; level 0
+     is vtz_read; a window is in the overview's samples; levels past 30 and windows outside
+     are errors. */
+  for (uint32_t k = 0; k <= 3; k++) {
+    uint32_t s = 1u << k, ow = (W + s - 1) / s, oh = (H + s - 1) / s;
+    rc = vtz_read_overview(f, k, 0, 0, ow, oh, VTZ_I16, wide, (size_t)ow * oh * 2, 0);
+    int16_t *ov = (int16_t *)wide;
+    int eq = rc == VTZ_OK;
+    for (uint32_t y = 0; eq && y < oh; y++)
+      for (uint32_t x = 0; x < ow; x++) eq &= ov[y * ow + x] == dec[y * s * W + x * s];
+    CHECK(eq, "overview %u (%ux%u) is the full decode at every %u-th sample: rc %d", k, ow, oh, s, rc);
+  }
+  rc = vtz_read_overview(f, 2, 3, 4, 5, 6, VTZ_I16, win, 5 * 6 * 2, 1);
+  int eq2 = rc == VTZ_OK;
+  for (int y = 0; eq2 && y < 6; y++)
+    for (int x = 0; x < 5; x++) eq2 &= win[y * 5 + x] == dec[(4 + y) * 4 * W + (3 + x) * 4];
+  CHECK(eq2, "a window of overview 2 is its crop: rc %d", rc);
+  rc = vtz_read_overview(f, 31, 0, 0, 1, 1, VTZ_I16, win, 2, 0);
+  CHECK(rc == VTZ_ERR_INVALID_ARGUMENT && strstr(vtz_last_error(), "1..=30"), "overview 31: rc %d", rc);
+  rc = vtz_read_overview(f, 1, (W + 1) / 2, 0, 1, 1, VTZ_I16, win, 2, 0);
+  CHECK(rc == VTZ_ERR_INVALID_ARGUMENT, "a window outside overview 1: rc %d", rc);
   /* A wider type gets the same values. */
   CHECK(vtz_read(f, 0, 0, W, H, VTZ_F64, wide, sizeof wide, 0) == VTZ_OK, "read as f64");
   int same = 1;
@@ -240,6 +261,27 @@ static void test_lossless_float_and_tiles(const char *tmp) {
   int same = 1;
   for (int y = 0; y < 70; y++) same &= memcmp(&win[y * 90], &dec[(60 + y) * W + 50], 90 * 4) == 0;
   CHECK(same, "a window across tile edges is the crop");
+  /* Overview 2 of the lossless tiled file: every sample is a source sample (of its tile's
+     own lattice, within 3 samples of the 4-th one), NaNs where the source has them. */
+  {
+    uint32_t ow = (W + 3) / 4, oh = (H + 3) / 4;
+    rc = vtz_read_overview(f, 2, 0, 0, ow, oh, VTZ_F32, win, (size_t)ow * oh * 4, 0);
+    int found = rc == VTZ_OK;
+    for (uint32_t y = 0; found && y < oh; y++)
+      for (uint32_t x = 0; found && x < ow; x++) {
+        float v = win[y * ow + x];
+        int hit = 0;
+        for (int dy = -3; dy <= 3 && !hit; dy++)
+          for (int dx = -3; dx <= 3 && !hit; dx++) {
+            int sy = (int)(y * 4) + dy, sx = (int)(x * 4) + dx;
+            if (sy < 0 || sx < 0 || sy >= H || sx >= W) continue;
+            float u = src[sy * W + sx];
+            hit = (isnan(u) && isnan(v)) || u == v;
+          }
+        found &= hit;
+      }
+    CHECK(found, "overview 2 of a lossless tiled file holds source samples near each position: rc %d", rc);
+  }
   vtz_close(f);
 
   /* Bad options and paths. */
