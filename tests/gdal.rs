@@ -651,3 +651,85 @@ fn scale_2_keeps_the_corner_gdal_sees() {
         assert_geotransform(&sb.geotransform, &want, name);
     }
 }
+
+/// A CRS the GeoTIFF's keys cannot carry (a WKT without an EPSG code, no stored keys)
+/// reaches GDAL through a PAM `.aux.xml` beside the decoded GeoTIFF, with the window's
+/// geotransform: untiled and tiled files (the tiled one written band by band), whole and
+/// windowed.
+#[test]
+fn a_wkt_only_crs_reaches_gdal_beside_a_decoded_geotiff() {
+    const LAEA: &str = "PROJCS[\"vtz test LAEA\",GEOGCS[\"GRS 1980\",DATUM[\"unknown\",SPHEROID[\"GRS80\",6378137,298.257222101]],PRIMEM[\"Greenwich\",0],UNIT[\"degree\",0.0174532925199433]],PROJECTION[\"Lambert_Azimuthal_Equal_Area\"],PARAMETER[\"latitude_of_center\",52],PARAMETER[\"longitude_of_center\",10],PARAMETER[\"false_easting\",4321000],PARAMETER[\"false_northing\",3210000],UNIT[\"metre\",1]]";
+    let dir = tempfile::tempdir().unwrap();
+    let mut r = read(&corpus("srtm3_N22W160_kauai.hgt"));
+    r.georef = Some(vtz::Georef {
+        origin: [4_000_000.0, 3_000_000.0],
+        pixel_size: [100.0, 100.0],
+        raster_type: vtz::RasterType::Area,
+        epsg: None,
+        wkt: Some(LAEA.into()),
+        geokeys: None,
+    });
+    for tile in [None, Some(512)] {
+        let mut o = vtz::EncodeOptions::default();
+        o.max_error = Some(vtz::ErrorBound::Abs(1.0));
+        o.tile = tile;
+        let bytes = vtz::encode(&r, &o).unwrap();
+        let f = dir.path().join("laea.vtz");
+        std::fs::write(&f, &bytes).unwrap();
+        for (win, origin) in [
+            (None, [4_000_000.0, 3_000_000.0]),
+            (Some("100,200,300,300"), [4_010_000.0, 2_980_000.0]),
+        ] {
+            let what = format!("tile {tile:?} window {win:?}");
+            let out = dir.path().join("laea.tif");
+            // No earlier iteration's sidecar may answer for this one.
+            let _ = std::fs::remove_file(dir.path().join("laea.tif.aux.xml"));
+            let mut args = vec![
+                "decode".to_string(),
+                f.display().to_string(),
+                "-o".into(),
+                out.display().to_string(),
+                "-f".into(),
+                "-q".into(),
+            ];
+            if let Some(w) = win {
+                args.extend(["--window".into(), w.into()]);
+            }
+            let o = Command::new(env!("CARGO_BIN_EXE_vtz"))
+                .args(&args)
+                .output()
+                .unwrap();
+            assert!(
+                o.status.success(),
+                "{what}: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+            let aux =
+                std::fs::read_to_string(dir.path().join("laea.tif.aux.xml")).expect("an .aux.xml");
+            assert!(
+                aux.contains("Lambert_Azimuthal_Equal_Area"),
+                "{what}: {aux}"
+            );
+            if !have_gdalinfo(&what) {
+                continue;
+            }
+            let d = gdalinfo(&out);
+            let wkt = d["coordinateSystem"]["wkt"].as_str().unwrap_or_default();
+            assert!(
+                wkt.contains("Lambert Azimuthal Equal Area") && wkt.contains("4321000"),
+                "{what}: {wkt}"
+            );
+            let gt: Vec<f64> = d["geoTransform"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect();
+            assert_eq!(
+                gt,
+                vec![origin[0], 100.0, 0.0, origin[1], 0.0, -100.0],
+                "{what}"
+            );
+        }
+    }
+}

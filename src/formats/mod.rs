@@ -22,8 +22,7 @@ mod sidecar;
 use crate::error::{Error, Result};
 use crate::model::{DEFAULT_MAX_SAMPLES, Raster, SampleType, ValueMapping};
 pub use geotiff::StreamWriter as GeoTiffWriter;
-pub(crate) use output::OutputFile;
-pub use output::{PendingFile, remove_temporaries, write_file};
+pub use output::{OutputFile, PendingFile, remove_temporaries, write_file};
 pub(crate) use output::{track, untrack};
 pub(crate) use pam::without_statistics;
 pub use png::PngMapping;
@@ -247,7 +246,11 @@ pub(crate) fn encode_path(
         }]
     };
     Ok(match format {
-        Format::GeoTiff => one(geotiff::write(raster)?),
+        Format::GeoTiff => {
+            let mut v = one(geotiff::write(raster)?);
+            v.extend(geotiff_sidecar(path, raster.georef.as_ref()));
+            v
+        }
         Format::Png | Format::TerrainRgb => {
             // A raster read from Terrain-RGB keeps that encoding in a .png unless the caller
             // asks for a 16-bit mapping.
@@ -358,6 +361,26 @@ pub(crate) fn encode_path(
             ]
         }
         Format::Vtz => return Err(not_here()),
+    })
+}
+
+/// The PAM `.aux.xml` a GeoTIFF at `path` needs beside it: one for a CRS its GeoKeys cannot
+/// carry (a WKT without an EPSG code or stored keys), which GDAL reads from there (it
+/// prefers PAM to the file's own keys: GDAL_GEOREF_SOURCES starts with PAM); `None`
+/// otherwise. The streaming writer's caller ([`GeoTiffWriter`]) writes it too.
+pub fn geotiff_sidecar(path: &Path, georef: Option<&crate::model::Georef>) -> Option<OutputFile> {
+    let g = georef.filter(|g| {
+        g.wkt.is_some()
+            && g.geokeys.is_none()
+            && g.epsg.and_then(|e| u16::try_from(e).ok()).is_none()
+    })?;
+    let pam = pam::Pam {
+        georef: Some(g),
+        ..Default::default()
+    };
+    Some(OutputFile {
+        path: pam::aux_path(path),
+        bytes: pam::aux_xml(&pam)?,
     })
 }
 

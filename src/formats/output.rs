@@ -40,7 +40,9 @@ pub fn remove_temporaries() {
 /// One output file a writer produced (a format may need a sidecar).
 #[derive(Clone, Debug)]
 pub struct OutputFile {
+    /// Where it goes.
     pub path: PathBuf,
+    /// What it holds.
     pub bytes: Vec<u8>,
 }
 

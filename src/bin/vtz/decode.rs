@@ -136,11 +136,14 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         let win = opts.window.unwrap_or(vtz::Window::full(w, h));
         let mut out = vtz::formats::PendingFile::create(&a.output, a.force)?;
         let mut writer = None;
+        let mut georef = None;
         let mut file = Some(out.writer());
         ui.progress_tiles("decoding", tiles, |p| {
             d.options(opts.clone()).decode_bands(
                 &mut |band| {
                     if writer.is_none() {
+                        // The output's georeferencing: the first band's (the window's corner).
+                        georef = band.georef.clone();
                         writer = Some(vtz::formats::GeoTiffWriter::new(
                             file.take().expect("the first band"),
                             win.width,
@@ -156,6 +159,9 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         .map_err(|e| e.context(a.input.display()))?;
         writer.expect("at least one band").finish()?;
         out.commit()?;
+        if let Some(aux) = vtz::formats::geotiff_sidecar(&a.output, georef.as_ref()) {
+            vtz::formats::write_file(&aux.path, aux.bytes, true)?;
+        }
         for s in d.skipped() {
             ui.say(format!(
                 "warning: wrote nodata for {}",
