@@ -7,7 +7,7 @@ use crate::container::flat::Flat;
 use crate::container::{ContainerReader, Header, Limits, SectionKind};
 use crate::error::{Error, Result};
 use crate::methods::{self, DecodeJob, Scaled};
-use crate::model::{Raster, Window};
+use crate::model::{Georef, Raster, Window};
 use std::io::{Read, Seek};
 
 /// The registry's names for the container (which knows no method).
@@ -56,17 +56,107 @@ pub(crate) fn check_output(
 /// inside the raster.
 pub(crate) fn window(opts: &DecodeOptions, w: usize, h: usize) -> Result<Window> {
     let win = opts.window.unwrap_or(Window::full(w, h));
-    if win.width == 0
-        || win.height == 0
-        || win.x.checked_add(win.width).is_none_or(|e| e > w)
-        || win.y.checked_add(win.height).is_none_or(|e| e > h)
-    {
+    if !inside(win, w, h) {
         return Err(Error::invalid(format!(
             "window {},{},{},{} is not inside the {w}x{h} raster",
             win.x, win.y, win.width, win.height
         )));
     }
     Ok(win)
+}
+
+/// Whether `win` holds a sample and lies inside a `w × h` raster.
+pub(crate) fn inside(win: Window, w: usize, h: usize) -> bool {
+    win.width > 0
+        && win.height > 0
+        && win.x.checked_add(win.width).is_some_and(|e| e <= w)
+        && win.y.checked_add(win.height).is_some_and(|e| e <= h)
+}
+
+// ---------------------------------------------------------------- overviews
+// (`DecodeOptions::overview`, `vtz decode --overview K`, GDAL's overview bands: every 2^K-th
+// sample, from what the format already holds; a tiled file's: `tiles::decode_overview`.)
+
+/// An overview request, checked: its level K, its size, and the window of it wanted.
+pub(crate) struct Overview {
+    pub k: u32,
+    pub width: usize,
+    pub height: usize,
+    pub window: Window,
+}
+
+/// The overview a decode asks for, checked against the raster (at least one sample each
+/// way; K ≤ 30) and the limits; its window (in the overview's samples) inside it. `None`
+/// without one.
+pub(crate) fn check_overview(
+    opts: &DecodeOptions,
+    w: usize,
+    h: usize,
+    limits: &Limits,
+) -> Result<Option<Overview>> {
+    let Some(k) = opts.overview else {
+        return Ok(None);
+    };
+    if !(1..=30).contains(&k) {
+        return Err(Error::invalid(format!(
+            "overview level {k} is not in 1..=30 (level K has every 2^K-th sample)"
+        )));
+    }
+    if opts.scale.is_some() {
+        return Err(Error::invalid("--overview and --scale cannot be combined"));
+    }
+    let s = 1usize << k;
+    let (ow, oh) = (w.div_ceil(s), h.div_ceil(s));
+    let win = match opts.window {
+        Some(win) => win,
+        None => Window::full(ow, oh),
+    };
+    if !inside(win, ow, oh) {
+        return Err(Error::invalid(format!(
+            "window {},{},{},{} is not inside overview {k} ({ow}x{oh} of the {w}x{h} raster)",
+            win.x, win.y, win.width, win.height
+        )));
+    }
+    check_output(
+        || {
+            format!(
+                "overview {k}'s window of {} x {} samples",
+                win.width, win.height
+            )
+        },
+        (win.width as u64).checked_mul(win.height as u64),
+        limits,
+    )?;
+    Ok(Some(Overview {
+        k,
+        width: ow,
+        height: oh,
+        window: win,
+    }))
+}
+
+/// The georeferencing of overview `k`: the same origin (the corner of pixel (0, 0), or its
+/// centre for pixel-is-point, whose sample the overview keeps), pixels 2^k times larger.
+pub(crate) fn overview_georef(g: &Georef, k: u32) -> Georef {
+    let mut out = g.clone();
+    let f = (1u64 << k) as f64;
+    out.pixel_size = [g.pixel_size[0] * f, g.pixel_size[1] * f];
+    out
+}
+
+/// The part `win` of an overview raster (`r` the whole overview).
+pub(crate) fn crop_overview(mut r: Raster, win: Window) -> Raster {
+    if (win.x, win.y, win.width, win.height) == (0, 0, r.width, r.height) {
+        return r;
+    }
+    let w = r.width;
+    r.data = methods::crop(&r.data, w, win);
+    r.mask = r.mask.map(|m| methods::crop(&m, w, win));
+    r.georef = r.georef.map(|g| g.window(win.x, win.y));
+    r.width = win.width;
+    r.height = win.height;
+    r.normalize_mask();
+    r
 }
 
 /// Decode one container (an untiled file, or one tile's block) with options into a raster:
@@ -92,7 +182,7 @@ pub(crate) fn decode_reader<R: Read + Seek>(
         .ok_or_else(|| Error::invalid(format!("the file has no section {idx}")))?
         .clone();
     let (w, h) = (header.width as usize, header.height as usize);
-    let overview = super::overview::check(opts, w, h, rd.limits())?;
+    let overview = check_overview(opts, w, h, rd.limits())?;
     // An overview's window is in its own samples; the method decodes the whole raster.
     let win = if overview.is_some() {
         Window::full(w, h)
@@ -173,14 +263,11 @@ pub(crate) fn decode_reader<R: Read + Seek>(
             nodata: header.nodata,
             sample_type: header.sample_type,
             mapping: header.mapping,
-            georef: header
-                .georef
-                .as_ref()
-                .map(|g| super::overview::georef(g, k)),
+            georef: header.georef.as_ref().map(|g| overview_georef(g, k)),
             gdal_metadata,
         };
         r.normalize_mask();
-        return Ok(super::overview::crop(r, req.window));
+        return Ok(crop_overview(r, req.window));
     }
     if let Some((s, ow, oh)) = scale {
         if let Some(r) = method.decode_scaled(&job, s.num, s.den, (ow, oh))? {

@@ -7,7 +7,6 @@ mod decode;
 mod encode;
 pub mod mesh;
 mod options;
-mod overview;
 pub mod points;
 mod rate;
 mod resample;

@@ -286,7 +286,7 @@ pub(crate) fn decode_bands<R: Read + Seek>(
         }
         Opened::Tiled(t) if opts.overview.is_some() => {
             // An overview is one band: its window is checked against the limits whole.
-            let (r, skipped) = super::overview::decode_tiled(t, opts, progress)?;
+            let (r, skipped) = decode_overview(t, opts, progress)?;
             sink(r)?;
             Ok(skipped)
         }
@@ -574,6 +574,129 @@ fn blend(
     }
 }
 
+/// Overview `req.k` of a tiled file (the window `req.window` of it): each tile whose core
+/// holds an overview sample decodes at its own 2^k lattice (a row of tiles at a time, on
+/// every thread), and the sample takes the tile's value at the lattice point nearest it
+/// (ties to the lower; within the tile). Gives back the tiles skipped as corrupt.
+pub(crate) fn decode_overview<R: Read + Seek>(
+    rd: &mut TiledReader<R>,
+    opts: &DecodeOptions,
+    progress: &(dyn Fn(f64) + Sync),
+) -> Result<(Raster, Vec<String>)> {
+    check_tiled_options(opts)?;
+    let header: Header = rd.header().clone();
+    let grid = rd.grid();
+    let (w, h) = (header.width as usize, header.height as usize);
+    let req = decode::check_overview(opts, w, h, rd.limits())?
+        .ok_or_else(|| Error::invalid("no overview asked for"))?;
+    let (k, win) = (req.k, req.window);
+    let s = 1usize << k;
+    let (tw, th) = (grid.tile_w as usize, grid.tile_h as usize);
+    let cols = grid.cols() as usize;
+    // The overview's columns and rows by the tile column / row whose core holds them.
+    let xs: Vec<usize> = (win.x..win.x + win.width).map(|i| i * s).collect();
+    let ys: Vec<usize> = (win.y..win.y + win.height).map(|i| i * s).collect();
+    let span = |v: &[usize], t: usize| -> Vec<(usize, std::ops::Range<usize>)> {
+        let mut out: Vec<(usize, std::ops::Range<usize>)> = Vec::new();
+        for (i, &p) in v.iter().enumerate() {
+            match out.last_mut() {
+                Some((c, r)) if *c == p / t => r.end = i + 1,
+                _ => out.push((p / t, i..i + 1)),
+            }
+        }
+        out
+    };
+    let (tcols, trows) = (span(&xs, tw), span(&ys, th));
+    let total = (tcols.len() * trows.len()).max(1);
+    let fill = header.nodata.unwrap_or(f64::NAN);
+    let n = win.width * win.height;
+    let mut data = vec![fill; n];
+    let mut mask = vec![false; n];
+    let mut skipped = Vec::new();
+    let pool = pool(opts.threads)?;
+    let done = AtomicUsize::new(0);
+    for (tr, rows) in &trows {
+        let mut blocks = Vec::with_capacity(tcols.len());
+        for (tc, cols_here) in &tcols {
+            let t = tr * cols + tc;
+            blocks.push((t, cols_here.clone(), rd.tile_block(t)));
+        }
+        let opener = rd.opener();
+        let decoded: Vec<(usize, std::ops::Range<usize>, Result<Raster>)> = pool.install(|| {
+            use rayon::prelude::*;
+            blocks
+                .into_par_iter()
+                .map(|(t, cr, block)| {
+                    let r = block.and_then(|b| {
+                        let mut trd = opener.open(t, b)?;
+                        let o = DecodeOptions {
+                            window: None,
+                            threads: 1,
+                            ..opts.clone()
+                        };
+                        methods::with_threads(1, || decode::decode_reader(&mut trd, &o, &|_| {}))
+                            .map_err(|e| e.context(tile_name(&grid, t)))
+                    });
+                    let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+                    progress(d as f64 / total as f64);
+                    (t, cr, r)
+                })
+                .collect()
+        });
+        for (t, cr, r) in decoded {
+            let r = match r {
+                Ok(r) => r,
+                Err(e) if opts.skip_corrupt && matches!(e, Error::Corrupt { .. }) => {
+                    skipped.push(e.to_string());
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
+            let e = grid.ext(t);
+            // The nearest point of the tile's lattice (ties to the lower), inside the tile.
+            let near =
+                |p: usize, origin: usize, n: usize| ((p - origin + (s - 1) / 2) / s).min(n - 1);
+            let mx: Vec<usize> = xs[cr.clone()]
+                .iter()
+                .map(|&x| near(x, e.x, r.width))
+                .collect();
+            for yi in rows.clone() {
+                let my = near(ys[yi], e.y, r.height);
+                for (xi, &m) in cr.clone().zip(&mx) {
+                    let i = my * r.width + m;
+                    if r.is_valid(i) {
+                        data[yi * win.width + xi] = r.data[i];
+                        mask[yi * win.width + xi] = true;
+                    }
+                }
+            }
+        }
+    }
+    let gdal = rd
+        .global_section(SectionKind::GDAL_METADATA)?
+        .map(|b| {
+            String::from_utf8(b).map_err(|_| Error::corrupt("gdal-metadata section is not UTF-8"))
+        })
+        .transpose()?
+        .map(|x| crate::formats::without_statistics(&x).into_owned());
+    let mut r = Raster {
+        width: win.width,
+        height: win.height,
+        data,
+        mask: Some(mask),
+        nodata: header.nodata,
+        sample_type: header.sample_type,
+        mapping: header.mapping,
+        georef: header
+            .georef
+            .as_ref()
+            .map(|g| decode::overview_georef(g, k).window(win.x, win.y)),
+        gdal_metadata: gdal,
+    };
+    r.normalize_mask();
+    Ok((r, skipped))
+}
+
 /// Decode a window (or all) of a file into memory. An untiled file: its one tile's decode,
 /// with `opts.scale` the method's own surface where it has one; a tiled file: its bands
 /// joined, with `opts.scale` the decoded samples interpolated as every method's are
@@ -586,7 +709,7 @@ pub(crate) fn decode_all<R: Read + Seek>(
     let header = match rd {
         Opened::Untiled(c) => return Ok((decode::decode_reader(c, opts, progress)?, Vec::new())),
         Opened::Tiled(t) if opts.overview.is_some() => {
-            return super::overview::decode_tiled(t, opts, progress);
+            return decode_overview(t, opts, progress);
         }
         Opened::Tiled(t) => t.header().clone(),
     };
