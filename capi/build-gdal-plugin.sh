@@ -17,7 +17,9 @@ out="$root/target/gdal-plugin"
 # library is installed (gdal-bin brings it), Debian's libgdal-dev package unpacked for its
 # headers alone (without its ~80 dependencies); else libgdal-dev installed with apt-get.
 # VTZ_GDAL_HEADERS_ONLY=1 takes the unpacked headers even where gdal-config exists.
-libgdal="$(ldconfig -p 2>/dev/null | awk '/libgdal\.so\.[0-9]+ / {print $NF; exit}')"
+# (awk reads all of ldconfig's list: leaving early would kill ldconfig with SIGPIPE, which
+# pipefail turns into a silent exit of this script.)
+libgdal="$(ldconfig -p 2>/dev/null | awk '/libgdal\.so\.[0-9]+ / && !found {print $NF; found = 1}')"
 if command -v gdal-config >/dev/null 2>&1 && [ -z "${VTZ_GDAL_HEADERS_ONLY:-}" ]; then
     gdal_cflags="$(gdal-config --cflags)"
     gdal_libs="$(gdal-config --libs)"

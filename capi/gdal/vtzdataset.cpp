@@ -22,7 +22,8 @@
  *   64 samples, level K holding every 2^K-th sample of every 2^K-th row
  *   (vtz_read_overview), for which the residual layer decodes only its coarse levels.
  *   They are VTZRasterBand objects of their own level: blocks of a tile's core at that
- *   level (tiled files) or strips served from a whole-level cache (untiled files).
+ *   level (tiled files) or strips served from a whole-level cache (untiled files; taken
+ *   from the full-resolution cache without a decode when that is there).
  * - Full-resolution RasterIO: a version-1 read copies from the cache; a version-2 read
  *   whose tiles are not all cached is either one vtz_read of exactly the window (a small
  *   window: vtz decodes only the rows and columns it needs) or one vtz_read of its
@@ -595,6 +596,20 @@ const GByte *VTZDataset::EnsureCache(int nLevel)
                  "vtz: cannot allocate %zu bytes to decode %s", nBytes,
                  GetDescription());
         return nullptr;
+    }
+    if (nLevel > 0 && !m_aabyCache[0].empty())
+    {
+        // The full resolution is decoded already: an untiled file's overview is its
+        // every 2^K-th sample (spec/FORMAT.md, "Overviews"), so no decode is needed.
+        const GByte *pabyFull = m_aabyCache[0].data();
+        const size_t nFullW = static_cast<size_t>(m_sInfo.width);
+        for (uint32_t iY = 0; iY < nH; ++iY)
+            for (uint32_t iX = 0; iX < nW; ++iX)
+                memcpy(abyCache.data() + (static_cast<size_t>(iY) * nW + iX) * m_nDTSize,
+                       pabyFull + ((static_cast<size_t>(iY) * nStep) * nFullW +
+                                   static_cast<size_t>(iX) * nStep) * m_nDTSize,
+                       m_nDTSize);
+        return abyCache.data();
     }
     CPLDebug("VTZ", "%s: vtz_read of level %d, 0,0 %ux%u (cached whole)",
              GetDescription(), nLevel, nW, nH);
