@@ -79,7 +79,7 @@ fn header(
     out.put_u8(0);
     out.put_u8(0);
     out.put_u32(count);
-    out.put_u64(flat.iter().filter(|&&b| b).count() as u64);
+    out.put_u64(crate::model::count_true(flat) as u64);
     out.put_u64(flat.len() as u64);
     for v in region_values {
         out.put_f64(v);
@@ -204,7 +204,7 @@ pub fn decode(payload: &[u8], w: usize, n: usize, mask: Option<&[bool]>) -> Resu
         }
         flat
     };
-    let seen = flat.iter().filter(|&&b| b).count() as u64;
+    let seen = crate::model::count_true(&flat) as u64;
     if seen != flat_count {
         return Err(r.corrupt(format!(
             "the bitmap has {seen} flat samples, the header says {flat_count}"

@@ -550,3 +550,40 @@ impl RowSource for Raster {
         InMemory(self).band(y0, rows)
     }
 }
+
+/// How many of `v` are true (a mask's valid samples, a bitmap's set ones): bytes summed 255
+/// at a time, which the compiler vectorizes (a filtered count it does not: 7 instructions a
+/// sample, on every decode with a mask or flat regions).
+pub(crate) fn count_true(v: &[bool]) -> usize {
+    v.chunks(255)
+        .map(|c| c.iter().fold(0u8, |a, &b| a + u8::from(b)) as usize)
+        .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::count_true;
+
+    /// Every length around the 255-byte chunks, dense and sparse: the filtered count's result.
+    #[test]
+    fn count_true_is_the_filtered_count() {
+        let mut s = 12345u64;
+        for n in [0usize, 1, 254, 255, 256, 510, 511, 1000, 4099] {
+            for density in [0u64, 1, 50, 100] {
+                let v: Vec<bool> = (0..n)
+                    .map(|_| {
+                        s = s
+                            .wrapping_mul(6364136223846793005)
+                            .wrapping_add(1442695040888963407);
+                        (s >> 33) % 100 < density
+                    })
+                    .collect();
+                assert_eq!(
+                    count_true(&v),
+                    v.iter().filter(|&&b| b).count(),
+                    "n {n}, {density} %"
+                );
+            }
+        }
+    }
+}

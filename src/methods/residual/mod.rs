@@ -573,10 +573,14 @@ pub(crate) fn decode(
     // The samples the header says the section codes are counted without allocating
     // anything sized by the header: a header that claims more than the section codes is
     // rejected before the planes are built.
-    let valid = |i: usize| mask.is_none_or(|m| m[i]);
-    let mut want = mask.map_or(n, |m| m.iter().filter(|&&v| v).count()) as u64;
+    let mut want = mask.map_or(n, crate::model::count_true) as u64;
     for (s, l, _) in flat.into_iter().flat_map(Flat::runs) {
-        want -= (s..s + l).filter(|&i| valid(i)).count() as u64;
+        // (A run past the raster counts nothing here and is refused below.)
+        let valid = match mask {
+            None => l,
+            Some(m) => m.get(s..s + l).map_or(0, crate::model::count_true),
+        };
+        want = want.saturating_sub(valid as u64);
     }
     if coded != want {
         return Err(rd.corrupt(format!("codes {coded} samples, the raster has {want}")));
