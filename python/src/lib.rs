@@ -45,11 +45,12 @@ fn to_py(py: Python<'_>, e: Error) -> PyErr {
 /// Python caller reads its own keyword arguments instead (`scale=`, `max_error=`). Flags
 /// with no keyword in this package are left as they are.
 fn python_words(msg: &str) -> String {
-    const WORDS: [(&str, &str); 10] = [
+    const WORDS: [(&str, &str); 11] = [
         ("--max-error", "max_error="),
         ("--lossless", "lossless=True"),
         ("--scale", "scale="),
         ("--window", "window="),
+        ("--overview", "overview="),
         ("--method", "method="),
         ("--threads", "threads="),
         ("--section", "section="),
@@ -277,6 +278,7 @@ fn decode_options(
     py: Python<'_>,
     window: Option<(usize, usize, usize, usize)>,
     scale: Option<&str>,
+    overview: Option<u32>,
     threads: usize,
 ) -> PyResult<DecodeOptions> {
     let mut o = DecodeOptions::default();
@@ -289,6 +291,7 @@ fn decode_options(
     if let Some(s) = scale {
         o.scale = Some(Scale::parse(s).map_err(|e| to_py(py, e))?);
     }
+    o.overview = overview;
     o.threads = threads;
     o.section = SectionChoice::Primary;
     Ok(o)
@@ -351,15 +354,16 @@ fn to_array<'py>(py: Python<'py>, r: Raster) -> PyResult<Bound<'py, PyAny>> {
 
 /// Decode vtz bytes into a numpy array.
 #[pyfunction]
-#[pyo3(signature = (data, window=None, scale=None, threads=0))]
+#[pyo3(signature = (data, window=None, scale=None, overview=None, threads=0))]
 fn decode<'py>(
     py: Python<'py>,
     data: &Bound<'py, PyBytes>,
     window: Option<(usize, usize, usize, usize)>,
     scale: Option<&str>,
+    overview: Option<u32>,
     threads: usize,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let opts = decode_options(py, window, scale, threads)?;
+    let opts = decode_options(py, window, scale, overview, threads)?;
     let bytes = data.as_bytes();
     let r = py
         .detach(|| vtz::on_threads(threads, || vtz::decode_with(bytes, &opts)).and_then(|r| r))

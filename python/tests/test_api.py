@@ -142,6 +142,22 @@ def test_window_and_scale():
     assert s.shape == (25, 35) and s.dtype == a.dtype
 
 
+def test_overview_is_every_2k_th_sample_of_the_full_decode():
+    a = terrain(50, 70, np.int16)
+    for effort in (1, 5):
+        b = vtz.encode(a, max_error=2, method="residual", effort=effort)
+        full = vtz.decode(b)
+        for k in (1, 2, 3):
+            o = vtz.decode(b, overview=k)
+            assert o.dtype == a.dtype
+            assert np.array_equal(o, full[:: 2**k, :: 2**k]), (effort, k)
+        w = vtz.decode(b, overview=1, window=(3, 2, 10, 8))
+        assert np.array_equal(w, full[::2, ::2][2:10, 3:13])
+    for bad in (0, 31, -1, 1.5, True):
+        with pytest.raises(vtz.InvalidArgumentError, match="overview"):
+            vtz.decode(b, overview=bad)
+
+
 def test_scale_decodes_every_method_as_gdal_lays_it_out():
     a = terrain(50, 70, np.int16)
     for method in (None, "residual", "grid", "haar", "fis", "sibson"):

@@ -175,6 +175,7 @@ def decode(
     window: Optional[Tuple[int, int, int, int]] = None,
     scale: Union[float, str, None] = None,
     threads: int = 0,
+    overview: Optional[int] = None,
 ) -> np.ndarray:
     """Decode a vtz stream into a numpy array of the dtype it was encoded from.
 
@@ -191,6 +192,11 @@ def decode(
         is refused: pass ``"1/3"``.
     threads : int
         Threads (0 = all cores); the result is bit-identical for every value.
+    overview : int, optional
+        Overview K (1..30) as ``vtz decode --overview K`` writes it: every 2**K-th sample of
+        every 2**K-th row (``ceil(h / 2**K)`` x ``ceil(w / 2**K)``); an untiled stream's is
+        its full decode's samples there. The residual layer decodes only its coarse levels
+        for it. ``window`` is then in the overview's samples.
 
     Returns
     -------
@@ -213,7 +219,12 @@ def decode(
         window = (x, y, w, h)
     if scale is not None:
         scale = str(scale)
-    return _vtz.decode(_bytes(data), window=window, scale=scale, threads=_threads(threads))
+    if overview is not None:
+        if isinstance(overview, bool) or not isinstance(overview, int) or not 0 <= overview <= 30:
+            raise InvalidArgumentError(f"overview must be an int in 1..30, not {overview!r}")
+    return _vtz.decode(
+        _bytes(data), window=window, scale=scale, overview=overview, threads=_threads(threads)
+    )
 
 
 def info(data: Union[bytes, bytearray, memoryview]) -> dict:
