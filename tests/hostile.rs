@@ -235,10 +235,27 @@ fn every_hostile_header_decodes_or_fails_within_budget() {
         for (name, bytes) in variants(&data) {
             let p = d.path().join(format!("{stem}.{name}.vtz"));
             std::fs::write(&p, &bytes).unwrap();
-            for (what, c) in [
+            let mut cases = vec![
                 ("decode", decode(&p)),
                 ("verify", run(&[Path::new("verify"), &p])),
-            ] {
+            ];
+            if u16_at(&data, 8) != 3 {
+                // Overviews: the residual layer's early stop and a tiled file's own path.
+                cases.push((
+                    "decode --overview 1",
+                    run(&[
+                        Path::new("decode"),
+                        &p,
+                        Path::new("-o"),
+                        &out,
+                        Path::new("--force"),
+                        Path::new("-q"),
+                        Path::new("--overview"),
+                        Path::new("1"),
+                    ]),
+                ));
+            }
+            for (what, c) in cases {
                 count += 1;
                 let line = c.stderr.trim();
                 let ok = !c.killed
