@@ -46,6 +46,19 @@ fn header_f64(key: &str, val: &str) -> Result<f64> {
     }
 }
 
+/// `NODATA_value`: a number, or NaN / ±infinity in any of the spellings GDAL's AAIGrid
+/// writer and C's `printf` give them (`nan`, `NaN`, `-nan`, `inf`, `-inf`, `Infinity`).
+fn header_nodata(key: &str, val: &str) -> Result<f64> {
+    // One NaN whatever its sign (`-nan`), so that it reads back the same after a write.
+    let canonical = |v: f64| if v.is_nan() { f64::NAN } else { v };
+    val.parse::<f64>().map(canonical).map_err(|_| {
+        Error::corrupt(format!(
+            "ESRI ASCII header '{key}' value '{}' is not a number",
+            truncate(val)
+        ))
+    })
+}
+
 fn header_count(key: &str, val: &str) -> Result<u64> {
     val.parse::<u64>().map_err(|_| {
         Error::corrupt(format!(
@@ -102,7 +115,7 @@ fn parse_header(text: &str) -> Result<(Header, &str)> {
             "cellsize" => set(&mut h.cellsize, header_f64(&key, val)?, &key)?,
             "dx" | "xdim" => set(&mut h.dx, header_f64(&key, val)?, &key)?,
             "dy" | "ydim" => set(&mut h.dy, header_f64(&key, val)?, &key)?,
-            "nodata_value" | "nodata" => set(&mut h.nodata, header_f64(&key, val)?, &key)?,
+            "nodata_value" | "nodata" => set(&mut h.nodata, header_nodata(&key, val)?, &key)?,
             _ => {
                 return Err(Error::corrupt(format!(
                     "ESRI ASCII header has an unknown key '{}'",
@@ -148,6 +161,9 @@ pub fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     }
     let n = check_size(ncols, nrows, opts.max_samples())?;
     let (width, height) = (ncols as usize, nrows as usize);
+    // A NaN NODATA_value (GDAL writes `nan` for a float raster whose nodata is NaN) declares
+    // no value: NaN samples are nodata anyway.
+    let declared = h.nodata.filter(|v| !v.is_nan());
 
     let mut values = Vec::with_capacity(n);
     let mut has_dot = false;
@@ -168,7 +184,9 @@ pub fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
                 i % width
             ))
         })?;
-        if v.is_infinite() {
+        // NaN samples are nodata (as `nan` in GDAL's own grids); an infinite one only as the
+        // declared NODATA_value.
+        if v.is_infinite() && h.nodata != Some(v) {
             return Err(Error::corrupt(format!(
                 "ESRI ASCII value '{}' at row {}, col {} is infinite",
                 truncate(tok),
@@ -186,18 +204,17 @@ pub fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
             values.len()
         )));
     }
-    let nodata_int = h
-        .nodata
-        .is_none_or(|v| v.fract() == 0.0 && v >= i32::MIN as f64 && v <= i32::MAX as f64);
+    let nodata_int =
+        declared.is_none_or(|v| v.fract() == 0.0 && v >= i32::MIN as f64 && v <= i32::MAX as f64);
     let (sample_type, nodata) = if all_int && !has_dot && nodata_int {
         for v in &mut values {
             *v += 0.0; // -0 → 0
         }
-        (SampleType::I32, h.nodata.map(|v| v + 0.0))
+        (SampleType::I32, declared.map(|v| v + 0.0))
     } else {
         for (i, v) in values.iter_mut().enumerate() {
             let s = *v as f32;
-            if s.is_infinite() {
+            if s.is_infinite() && !v.is_infinite() {
                 return Err(Error::corrupt(format!(
                     "ESRI ASCII value {v} at row {}, col {} is out of float32 range",
                     i / width,
@@ -206,8 +223,8 @@ pub fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
             }
             *v = s as f64;
         }
-        let nd = match h.nodata {
-            Some(v) if (v as f32).is_infinite() => {
+        let nd = match declared {
+            Some(v) if (v as f32).is_infinite() && !v.is_infinite() => {
                 return Err(Error::corrupt(format!(
                     "ESRI ASCII NODATA_value {v} is out of float32 range"
                 )));
@@ -551,5 +568,65 @@ mod tests {
             assert_same(&r, &back, "asc round trip");
             assert_eq!(write(&back).unwrap(), w);
         }
+    }
+
+    /// `gdal_translate -of AAIGrid` of a float raster whose nodata is NaN (GDAL 3.6's bytes),
+    /// and the other spellings of NaN and infinity GDAL and C's printf write.
+    #[test]
+    fn gdal_nan_and_infinite_nodata() {
+        let gdal = "ncols        4\nnrows        3\nxllcorner    10.000000000000\n\
+                    yllcorner    17.000000000000\ncellsize     1.000000000000\n\
+                    NODATA_value  nan\n 0.0 1.5 3 4.5\n 6 nan 9 10.5\n 12 13.5 15 16.5\n";
+        let r = read(gdal.as_bytes(), &opts()).unwrap();
+        assert_eq!(r.sample_type, SampleType::F32);
+        assert_eq!(
+            r.nodata, None,
+            "NaN samples are nodata without a declared value"
+        );
+        assert_eq!(r.valid_count(), 11);
+        assert!(!r.is_valid(5));
+        assert_eq!(r.data[6], 9.0);
+        // Written back, the invalid samples get a NODATA_value sentinel (-9999): the same
+        // samples are valid, with the same values.
+        let same = |a: &Raster, b: &Raster, what: &str| {
+            assert_eq!(a.mask, b.mask, "{what}");
+            for i in (0..a.len()).filter(|&i| a.is_valid(i)) {
+                assert_eq!(a.data[i].to_bits(), b.data[i].to_bits(), "{what}: {i}");
+            }
+        };
+        let back = read(&write(&r).unwrap(), &opts()).unwrap();
+        same(&r, &back, "NaN nodata round trip");
+
+        for (nd, sample) in [
+            ("NaN", "NaN"),
+            ("-nan", "-nan"),
+            ("nan", "-9999"),
+            ("-inf", "-inf"),
+            ("inf", "inf"),
+            ("-Infinity", "-Infinity"),
+        ] {
+            let t = format!(
+                "ncols 2\nnrows 1\nxllcorner 0\nyllcorner 0\ncellsize 1\nNODATA_value {nd}\n1.5 {sample}\n"
+            );
+            let r = read(t.as_bytes(), &opts()).unwrap_or_else(|e| panic!("{nd} {sample}: {e}"));
+            let want_valid = sample == "-9999";
+            assert_eq!(r.is_valid(1), want_valid, "{nd} {sample}");
+            let back = read(&write(&r).unwrap(), &opts()).unwrap();
+            same(&r, &back, nd);
+        }
+        // NaN samples are nodata whatever the declared value; an infinite one that is not
+        // the NODATA_value is still refused.
+        let t =
+            "ncols 2\nnrows 1\nxllcorner 0\nyllcorner 0\ncellsize 1\nNODATA_value -9999\nnan 2\n";
+        let r = read(t.as_bytes(), &opts()).unwrap();
+        assert!(!r.is_valid(0));
+        let t =
+            "ncols 2\nnrows 1\nxllcorner 0\nyllcorner 0\ncellsize 1\nNODATA_value -inf\ninf 2\n";
+        assert!(read(t.as_bytes(), &opts()).is_err());
+        let t = "ncols 2\nnrows 1\nxllcorner 0\nyllcorner 0\ncellsize 1\nNODATA_value none\n1 2\n";
+        assert!(matches!(
+            read(t.as_bytes(), &opts()),
+            Err(Error::Corrupt { .. })
+        ));
     }
 }
