@@ -1,9 +1,12 @@
-//! SRTM `.hgt` tiles: square grids of big-endian i16, -32768 = void, georeferenced by file name.
+//! SRTM `.hgt` tiles: grids of big-endian i16 posts, -32768 = void, georeferenced by file name.
 //!
 //! A tile named like `N22W160.hgt` (the `[NS]dd[EW]ddd` pattern may appear anywhere in the
 //! name, in any case) covers the 1×1 degree cell whose south-west corner is (lon -160,
-//! lat 22); its posts are cell centres ([`RasterType::Point`]), row 0 at latitude 23, with
-//! spacing 1/(N-1) degrees on WGS84 (EPSG:4326).
+//! lat 22); its posts are cell centres ([`RasterType::Point`]), row 0 at latitude 23, on
+//! WGS84 (EPSG:4326). The grid is told by the file's size, as GDAL's SRTMHGT driver tells it:
+//! N × N posts 1/(N-1)° apart (SRTM3 1201², SRTM1 3601², the 0.5″ 7201²; any N from 2 to
+//! 10 000 is read), or the 1801 × 3601 of SRTM1 tiles north of 50° (1/1800° along a row,
+//! 1/3600° down a column). Another size is unsupported.
 
 use crate::error::{Error, Result};
 use crate::formats::ReadOptions;
@@ -54,23 +57,47 @@ pub fn tile_corner(name: &str) -> Option<(f64, f64)> {
     None
 }
 
+/// Columns and rows of the one non-square grid GDAL's SRTMHGT driver reads: SRTM1 north of
+/// 50° (posts 2″ apart along a row, 1″ down a column).
+const HIGH_LATITUDE_SRTM1: (usize, usize) = (1801, 3601);
+
+/// The grid (columns, rows) of an `.hgt` file of `len` bytes.
+fn geometry(len: u64) -> Result<(usize, usize)> {
+    if len % 2 != 0 {
+        return Err(Error::corrupt(format!(
+            "hgt file of {len} bytes is not a whole number of 2-byte samples"
+        )));
+    }
+    let samples = len / 2;
+    let (w, h) = HIGH_LATITUDE_SRTM1;
+    if samples == (w * h) as u64 {
+        return Ok(HIGH_LATITUDE_SRTM1);
+    }
+    let side = samples.isqrt();
+    if side * side == samples && side >= 2 {
+        if side > MAX_SIDE {
+            return Err(Error::limit(format!(
+                "hgt grid of {side}x{side} is over the {MAX_SIDE}x{MAX_SIDE} limit"
+            )));
+        }
+        return Ok((side as usize, side as usize));
+    }
+    Err(Error::unsupported(format!(
+        "hgt file of {len} bytes is no .hgt grid vtz reads (N×N int16 posts such as 1201², \
+         3601² or 7201², or 1801×3601 north of 50°)"
+    )))
+}
+
+/// Whether `width × height` is a grid an `.hgt` file can hold (one [`read`] tells apart).
+fn is_hgt_grid(width: usize, height: usize) -> bool {
+    (width == height && width >= 2 && width as u64 <= MAX_SIDE)
+        || (width, height) == HIGH_LATITUDE_SRTM1
+}
+
 /// Read an `.hgt` tile; `name` is the file name the georeferencing comes from.
 pub fn read(bytes: &[u8], name: &str, opts: &ReadOptions) -> Result<Raster> {
-    let len = bytes.len() as u64;
-    let samples = len / 2;
-    let side = samples.isqrt();
-    if len % 2 != 0 || side * side != samples || side < 2 {
-        return Err(Error::corrupt(format!(
-            "hgt file of {len} bytes is not 2·N² bytes for a square N×N grid with N ≥ 2"
-        )));
-    }
-    if side > MAX_SIDE {
-        return Err(Error::limit(format!(
-            "hgt grid of {side}x{side} is over the {MAX_SIDE}x{MAX_SIDE} limit"
-        )));
-    }
-    let n = check_size(side, side, opts.max_samples())?;
-    let side = side as usize;
+    let (width, height) = geometry(bytes.len() as u64)?;
+    let n = check_size(width as u64, height as u64, opts.max_samples())?;
     let nodata = VOID as f64;
     let mut data = Vec::with_capacity(n);
     let mut mask: Option<Vec<bool>> = None;
@@ -83,7 +110,7 @@ pub fn read(bytes: &[u8], name: &str, opts: &ReadOptions) -> Result<Raster> {
     }
     let georef = tile_corner(name).map(|(lon, lat)| Georef {
         origin: [lon, lat + 1.0],
-        pixel_size: [1.0 / (side - 1) as f64, 1.0 / (side - 1) as f64],
+        pixel_size: [1.0 / (width - 1) as f64, 1.0 / (height - 1) as f64],
         raster_type: RasterType::Point,
         epsg: Some(4326),
         wkt: None,
@@ -91,7 +118,7 @@ pub fn read(bytes: &[u8], name: &str, opts: &ReadOptions) -> Result<Raster> {
     });
     Ok(Raster {
         georef,
-        ..Raster::from_parts(side, side, data, mask, Some(nodata), SampleType::I16)
+        ..Raster::from_parts(width, height, data, mask, Some(nodata), SampleType::I16)
     })
 }
 
@@ -107,23 +134,24 @@ fn tile_name(lon: f64, lat: f64) -> String {
 }
 
 /// The south-west corner (lon, lat) of the 1° SRTM tile `r` is, when its georef makes it
-/// one: WGS84 (or no CRS said), an N × N grid of posts 1/(N-1)° apart from a whole degree
-/// (pixel-is-point; pixel-is-area half a pixel out, as GDAL reports an `.hgt`).
+/// one: WGS84 (or no CRS said), a grid an `.hgt` holds, its posts 1/(columns-1)° apart along
+/// a row and 1/(rows-1)° down a column from a whole degree (pixel-is-point; pixel-is-area
+/// half a post out, as GDAL reports an `.hgt`).
 fn srtm_corner(r: &Raster) -> Option<(f64, f64)> {
     let g = r.georef.as_ref()?;
-    if r.width != r.height || r.width < 2 || g.epsg.is_some_and(|e| e != 4326) {
+    if !is_hgt_grid(r.width, r.height) || g.epsg.is_some_and(|e| e != 4326) {
         return None;
     }
-    let step = 1.0 / (r.width - 1) as f64;
-    let tol = step * 1e-3;
-    if (g.pixel_size[0] - step).abs() > tol || (g.pixel_size[1] - step).abs() > tol {
+    let step = [1.0 / (r.width - 1) as f64, 1.0 / (r.height - 1) as f64];
+    let tol = step[1] * 1e-3;
+    if (g.pixel_size[0] - step[0]).abs() > tol || (g.pixel_size[1] - step[1]).abs() > tol {
         return None;
     }
     let half = match g.raster_type {
-        RasterType::Point => 0.0,
-        RasterType::Area => step / 2.0,
+        RasterType::Point => [0.0, 0.0],
+        RasterType::Area => [step[0] / 2.0, step[1] / 2.0],
     };
-    let (lon, top) = (g.origin[0] + half, g.origin[1] - half);
+    let (lon, top) = (g.origin[0] + half[0], g.origin[1] - half[1]);
     let (flon, ftop) = (lon.round(), top.round());
     ((lon - flon).abs() <= tol && (top - ftop).abs() <= tol && ftop > -89.5 && ftop <= 90.0)
         .then_some((flon, ftop - 1.0))
@@ -155,19 +183,15 @@ pub fn check_name(r: &Raster, name: &str, drop_georef: bool) -> Result<()> {
     )))
 }
 
-/// Write a square raster as an `.hgt` tile (the georef is not stored: the file name carries
-/// it). Values are rounded to the nearest integer and must fit i16 without being -32768;
-/// invalid samples become -32768.
+/// Write a raster as an `.hgt` tile (the georef is not stored: the file name carries it):
+/// an N × N grid (2 ≤ N ≤ 10 000) or the 1801 × 3601 of SRTM1 north of 50°, the grids
+/// [`read`] tells apart by size. Values are rounded to the nearest integer and must fit i16
+/// without being -32768; invalid samples become -32768.
 pub fn write(r: &Raster) -> Result<Vec<u8>> {
-    if r.width != r.height || r.width < 2 {
+    if !is_hgt_grid(r.width, r.height) {
         return Err(Error::invalid(format!(
-            "an .hgt tile must be a square grid of at least 2x2, this raster is {}x{}",
-            r.width, r.height
-        )));
-    }
-    if r.width as u64 > MAX_SIDE {
-        return Err(Error::invalid(format!(
-            "an .hgt tile can be at most {MAX_SIDE}x{MAX_SIDE}, this raster is {}x{}",
+            "an .hgt tile is a square grid of 2x2 to {MAX_SIDE}x{MAX_SIDE} posts or the \
+             1801x3601 of SRTM1 north of 50°, this raster is {}x{}",
             r.width, r.height
         )));
     }
@@ -337,5 +361,58 @@ mod tests {
                 assert!(r.valid_count() < r.len(), "kauai has voids");
             }
         });
+    }
+
+    /// Every grid GDAL's SRTMHGT driver reads (1201², 3601², 7201², and 1801 × 3601 for SRTM1
+    /// north of 50°) is read with its own spacing per axis and written back byte for byte;
+    /// another even size is "unsupported", an odd one corrupt.
+    #[test]
+    fn every_gdal_geometry() {
+        for (w, h) in [
+            (1201usize, 1201usize),
+            (3601, 3601),
+            (1801, 3601),
+            (7201, 7201),
+        ] {
+            let mut rng = Rng(w as u64);
+            let vals: Vec<i16> = (0..w * h)
+                .map(|i| {
+                    if i % 1000 == 7 {
+                        VOID
+                    } else {
+                        (rng.next() % 9000) as i16 - 500
+                    }
+                })
+                .collect();
+            let bytes: Vec<u8> = vals.iter().flat_map(|v| v.to_be_bytes()).collect();
+            let r = read(&bytes, "N60E010.hgt", &opts()).unwrap_or_else(|e| panic!("{w}x{h}: {e}"));
+            assert_eq!((r.width, r.height), (w, h));
+            assert_eq!(r.data[1], f64::from(vals[1]));
+            assert!(!r.is_valid(7));
+            let g = r.georef.clone().unwrap();
+            assert_eq!(g.origin, [10.0, 61.0]);
+            assert_eq!(
+                g.pixel_size,
+                [1.0 / (w - 1) as f64, 1.0 / (h - 1) as f64],
+                "{w}x{h}"
+            );
+            assert_eq!(write(&r).unwrap(), bytes, "{w}x{h}");
+            assert!(check_name(&r, "N60E010.hgt", false).is_ok(), "{w}x{h}");
+            let e = check_name(&r, "tile.hgt", false).unwrap_err().to_string();
+            assert!(e.contains("N60E010.hgt"), "{e}");
+        }
+        // 601 x 1201 (or 1201 x 601: the same size), which GDAL does not open either; a size
+        // of no grid; HTML saved as .hgt.
+        for len in [601 * 1201 * 2, 1201 * 1201 * 2 + 2, 1000] {
+            let e = read(&vec![0u8; len], "N60E010.hgt", &opts()).unwrap_err();
+            assert!(matches!(e, Error::Unsupported { .. }), "{len}: {e}");
+        }
+        let e = read(b"<html></html>\n", "N60E010.hgt", &opts()).unwrap_err();
+        assert!(matches!(e, Error::Unsupported { .. }), "{e}");
+        let e = read(&[0u8; 1001], "N60E010.hgt", &opts()).unwrap_err();
+        assert!(matches!(e, Error::Corrupt { .. }), "{e}");
+        // The writer takes the same grids and no other.
+        let r = Raster::from_values(3, 2, vec![0.0; 6], None, SampleType::I16).unwrap();
+        assert!(matches!(write(&r), Err(Error::InvalidArgument { .. })));
     }
 }
