@@ -493,6 +493,12 @@ pub trait RowSource: Send {
     /// Rows `y0..y0 + rows`, full width, with the source's sample type, mapping, nodata and
     /// GDAL metadata, and its georef moved to the band's first row.
     fn band(&mut self, y0: usize, rows: usize) -> Result<Raster>;
+    /// What the reader wants the user told about how it read the file (one line each,
+    /// without a "note:" prefix): a GeoTIFF's mask band taken as nodata, 16-bit PNG codes
+    /// that look like heights + 32768. None by default.
+    fn notes(&self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 /// A raster already in memory as a [`RowSource`].

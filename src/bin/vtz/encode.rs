@@ -114,6 +114,9 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let mut src = ui.busy("reading", || {
         common::open_source(&a.input, format, &a.raster)
     })?;
+    for n in src.notes() {
+        ui.say(format!("note: {n}"));
+    }
     let samples = src.width() * src.height();
     let target_bytes = match (a.size, a.bps) {
         (Some(s), _) => Some(s),

@@ -16,14 +16,18 @@
 //! the horizontal predictor for integer samples. (The `tiff` 0.11 encoder has no floating-point
 //! predictor, so float samples are written with Deflate alone.)
 //!
+//! A per-dataset mask band inside the file (GDAL's `GDAL_TIFF_INTERNAL_MASK`, as COGs carry
+//! it) makes its masked samples invalid in both readers (`mask`).
+//!
 //! One file a concern: `precheck` (the IFD pre-pass), `read` (decoding), `georef` (the
-//! georeferencing tags both ways), `nodata` (GDAL_NODATA text both ways) and `write`
-//! (encoding); the tag numbers they share are below.
+//! georeferencing tags both ways), `nodata` (GDAL_NODATA text both ways), `mask` (the internal
+//! mask band) and `write` (encoding); the tag numbers they share are below.
 //!
 //! [`ReadOptions::max_samples`]: crate::formats::ReadOptions::max_samples
 //! [`Georef`]: crate::model::Georef
 
 mod georef;
+mod mask;
 mod nodata;
 mod precheck;
 mod read;

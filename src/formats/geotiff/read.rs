@@ -1,10 +1,10 @@
 //! Reading: the pre-checked decode into a [`Raster`].
 
-use super::TAG_GDAL_METADATA;
 use super::georef::read_georef;
 use super::nodata::read_nodata;
 use super::precheck::precheck;
 use super::tags::{tag_string, tiff_err};
+use super::{TAG_GDAL_METADATA, mask};
 use crate::error::{Error, Result};
 use crate::formats::ReadOptions;
 use crate::model::{Raster, SampleType};
@@ -12,7 +12,8 @@ use std::io::Cursor;
 use tiff::decoder::{Decoder, DecodingResult, Limits};
 
 /// Read a single-band GeoTIFF into a [`Raster`] (values exact as `f64`, nodata and NaN samples
-/// marked invalid, georeferencing from the GeoTIFF tags).
+/// and those its internal mask band masks marked invalid, georeferencing from the GeoTIFF
+/// tags).
 pub fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     let layout = precheck(bytes, opts)?;
 
@@ -36,7 +37,7 @@ pub fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
 
     let decoded = dec.read_image().map_err(tiff_err)?;
     let st = layout.sample_type;
-    let data: Vec<f64> = match (decoded, st) {
+    let mut data: Vec<f64> = match (decoded, st) {
         (DecodingResult::U8(v), SampleType::U8) => v.into_iter().map(f64::from).collect(),
         (DecodingResult::I16(v), SampleType::I16) => v.into_iter().map(f64::from).collect(),
         (DecodingResult::U16(v), SampleType::U16) => v.into_iter().map(f64::from).collect(),
@@ -56,6 +57,17 @@ pub fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
             data.len(),
             layout.samples
         )));
+    }
+
+    // Samples the internal mask band masks are nodata (NaN here, invalid below).
+    let mut src = mask::InMemory(bytes);
+    if let Some(m) = mask::find(&mut src, layout.width, layout.height)? {
+        let valid = m.rows(&mut src, 0, layout.height)?;
+        for (v, ok) in data.iter_mut().zip(valid) {
+            if !ok {
+                *v = f64::NAN;
+            }
+        }
     }
 
     let georef = read_georef(&mut dec)?;

@@ -29,7 +29,7 @@ use super::tags::{enc_err, tag_string, tiff_err};
 use super::write::BIGTIFF_THRESHOLD;
 use super::{
     TAG_GDAL_METADATA, TAG_STRIP_BYTE_COUNTS, TAG_STRIP_OFFSETS, TAG_TILE_BYTE_COUNTS,
-    TAG_TILE_OFFSETS, TAG_TILE_WIDTH,
+    TAG_TILE_OFFSETS, TAG_TILE_WIDTH, mask,
 };
 use crate::error::{Error, Result};
 use crate::formats::ReadOptions;
@@ -66,6 +66,8 @@ pub struct StreamReader {
     chunks_across: usize,
     /// The last chunk row decoded.
     cache: Option<ChunkRow>,
+    /// The internal mask band, and the file it is read from.
+    mask: Option<(mask::Mask, mask::OnDisk)>,
 }
 
 /// The samples of one decoded chunk row, full width.
@@ -115,6 +117,13 @@ impl StreamReader {
         let nodata = read_nodata(&mut tags, st)?;
         let gdal_metadata = tag_string(&mut tags, TAG_GDAL_METADATA)?;
 
+        // The internal mask band, read band by band like the samples.
+        let mut on_disk = mask::OnDisk {
+            file: File::open(path).map_err(|e| Error::io(&f.ctx, e))?,
+            len,
+        };
+        let mask = mask::find(&mut on_disk, layout.width, layout.height)?.map(|m| (m, on_disk));
+
         let (cw, ch) = dec.chunk_dimensions();
         let chunk_width = (cw as usize).min(layout.width);
         let chunk_rows = (ch as usize).min(layout.height);
@@ -135,6 +144,7 @@ impl StreamReader {
             chunk_rows,
             chunks_across: layout.width.div_ceil(chunk_width),
             cache: None,
+            mask,
         })
     }
 
@@ -173,6 +183,13 @@ impl StreamReader {
             let upto = end.min(c.y0 + c.rows);
             data.extend_from_slice(&c.data[(y - c.y0) * w..(upto - c.y0) * w]);
             y = upto;
+        }
+        if let Some((m, file)) = &mut self.mask {
+            for (v, ok) in data.iter_mut().zip(m.rows(file, y0, rows)?) {
+                if !ok {
+                    *v = f64::NAN;
+                }
+            }
         }
 
         // `read` refuses infinite samples other than the nodata value; name the first one by
@@ -1154,6 +1171,16 @@ impl crate::model::RowSource for StreamReader {
     }
     fn band(&mut self, y0: usize, rows: usize) -> Result<Raster> {
         StreamReader::band(self, y0, rows)
+    }
+    fn notes(&self) -> Vec<String> {
+        match self.mask {
+            Some(_) => vec![
+                "the GeoTIFF's internal mask band (GDAL's per-dataset mask) is read: the \
+                 samples it masks are nodata"
+                    .to_string(),
+            ],
+            None => Vec::new(),
+        }
     }
 }
 
