@@ -132,6 +132,106 @@ pub(crate) fn parse_prj(bytes: &[u8]) -> (String, Option<u32>) {
     (text, epsg)
 }
 
+/// GeoTIFF's VerticalCSTypeGeoKey and VerticalCitationGeoKey.
+const KEY_VERTICAL_CS: u16 = 4096;
+const KEY_VERTICAL_CITATION: u16 = 4097;
+
+/// The CRS of a georef in one line for people, both parts of a compound CRS: the horizontal
+/// one (`EPSG:n`, else the WKT's root name) and, when the file keeps one, the vertical one
+/// (`vertical EPSG:n (name)`) from the GeoTIFF keys (VerticalCSTypeGeoKey, its citation) or
+/// from a compound WKT (`COMPD_CS`, `COMPOUNDCRS`: its `VERT_CS`/`VERTCRS` node). `None`
+/// when there is neither an EPSG code nor a vertical CRS.
+pub(crate) fn crs_summary(g: &Georef) -> Option<String> {
+    let wkt = g.wkt.as_deref().filter(|w| looks_like_wkt(w));
+    let vertical = g
+        .geokeys
+        .as_ref()
+        .and_then(vertical_of_geokeys)
+        .or_else(|| wkt.and_then(vertical_of_wkt));
+    let horizontal = match (g.epsg, wkt) {
+        (Some(e), _) => Some(format!("EPSG:{e}")),
+        (None, Some(w)) if vertical.is_some() => wkt_name(w).map(|n| format!("\"{n}\"")),
+        _ => None,
+    };
+    match (horizontal, vertical) {
+        (None, None) => None,
+        (Some(h), None) => Some(h),
+        (None, Some(v)) => Some(format!("vertical {v}")),
+        (Some(h), Some(v)) => Some(format!("{h} + vertical {v}")),
+    }
+}
+
+/// The first quoted string after the root keyword of a WKT: its name.
+fn wkt_name(w: &str) -> Option<&str> {
+    let open = w.find(['[', '('])?;
+    let rest = &w[open + 1..];
+    let a = rest.find('"')?;
+    let b = rest[a + 1..].find('"')?;
+    Some(&rest[a + 1..a + 1 + b])
+}
+
+/// The vertical CRS of GeoTIFF keys: `EPSG:n (citation)`, the citation alone for a
+/// user-defined one.
+fn vertical_of_geokeys(k: &crate::model::GeoKeys) -> Option<String> {
+    let dir = &k.directory;
+    let n = usize::from(*dir.get(3)?);
+    let key = |id: u16| {
+        dir.get(4..)?
+            .chunks_exact(4)
+            .take(n)
+            .find(|e| e[0] == id)
+            .map(|e| (e[1], e[2], e[3]))
+    };
+    let citation = key(KEY_VERTICAL_CITATION).and_then(|(loc, count, off)| {
+        (loc == 34737)
+            .then(|| {
+                k.ascii
+                    .get(usize::from(off)..usize::from(off) + usize::from(count))
+                    .map(|s| s.trim_end_matches(['|', '\0']).trim().to_string())
+            })
+            .flatten()
+            .filter(|s| !s.is_empty())
+    });
+    let code = key(KEY_VERTICAL_CS)
+        .filter(|e| e.0 == 0)
+        .map(|e| e.2)
+        .filter(|&c| c != 0);
+    match (code, citation) {
+        (Some(c), cit) if c != 32767 => Some(match cit {
+            Some(t) => format!("EPSG:{c} ({t})"),
+            None => format!("EPSG:{c}"),
+        }),
+        (_, Some(t)) => Some(format!("\"{t}\"")),
+        _ => None,
+    }
+}
+
+/// The vertical part of a compound WKT: `EPSG:n (name)` or `"name"`.
+fn vertical_of_wkt(w: &str) -> Option<String> {
+    let upper = w.to_ascii_uppercase();
+    let root = upper.trim_start();
+    if !(root.starts_with("COMPD_CS") || root.starts_with("COMPOUNDCRS")) {
+        return None;
+    }
+    let at = ["VERT_CS", "VERTCRS", "VERTICALCRS"]
+        .iter()
+        .filter_map(|kw| {
+            upper
+                .match_indices(kw)
+                .find(|(i, _)| upper[i + kw.len()..].trim_start().starts_with(['[', '(']))
+                .map(|(i, _)| i)
+        })
+        .min()?;
+    let node = &w[at..];
+    let name = wkt_name(node);
+    Some(match (epsg_of_wkt(node), name) {
+        (Some(c), Some(n)) => format!("EPSG:{c} ({n})"),
+        (Some(c), None) => format!("EPSG:{c}"),
+        (None, Some(n)) => format!("\"{n}\""),
+        (None, None) => "(unnamed)".to_string(),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -251,5 +351,40 @@ mod tests {
         assert_eq!(t, "GEOGCS[\"Bogot\u{e1}\"]");
         let (t, e) = parse_prj(b"not a crs at all");
         assert_eq!((t.as_str(), e), ("not a crs at all", None));
+    }
+
+    #[test]
+    fn both_parts_of_a_compound_crs() {
+        // GDAL's keys for EPSG:32611+5703 (the citation as GDAL writes it).
+        let mut g = georef(Some(32611), None);
+        g.geokeys = Some(crate::model::GeoKeys {
+            directory: vec![
+                1, 1, 0, 5, 1024, 0, 1, 1, 1025, 0, 1, 1, 3072, 0, 1, 32611, 4096, 0, 1, 5703,
+                4097, 34737, 14, 0,
+            ],
+            doubles: vec![],
+            ascii: "NAVD88 height|".to_string(),
+        });
+        assert_eq!(
+            crs_summary(&g).as_deref(),
+            Some("EPSG:32611 + vertical EPSG:5703 (NAVD88 height)")
+        );
+        // Horizontal only: as before.
+        assert_eq!(
+            crs_summary(&georef(Some(4326), None)).as_deref(),
+            Some("EPSG:4326")
+        );
+        assert_eq!(crs_summary(&georef(None, None)), None);
+        // A compound WKT 1 (GDAL's SRTM one) and a WKT 2.
+        let w1 = r#"COMPD_CS["WGS 84 + EGM96 geoid height",GEOGCS["WGS 84",AUTHORITY["EPSG","4326"]],VERT_CS["EGM96 geoid height",VERT_DATUM["EGM96 geoid",2005],AUTHORITY["EPSG","5773"]]]"#;
+        assert_eq!(
+            crs_summary(&georef(Some(4326), Some(w1))).as_deref(),
+            Some("EPSG:4326 + vertical EPSG:5773 (EGM96 geoid height)")
+        );
+        let w2 = r#"COMPOUNDCRS["NAD83 + NAVD88",GEOGCRS["NAD83"],VERTCRS["NAVD88 height",VDATUM["North American Vertical Datum 1988"]]]"#;
+        assert_eq!(
+            crs_summary(&georef(None, Some(w2))).as_deref(),
+            Some("\"NAD83 + NAVD88\" + vertical \"NAVD88 height\"")
+        );
     }
 }

@@ -35,12 +35,22 @@ pub fn crs_user_input(g: &crate::model::Georef) -> Option<String> {
     crs::crs_user_input(g).map(|c| c.into_owned())
 }
 
+/// The CRS of a georeference in one line for people (`vtz info`), both parts of a compound
+/// CRS: `EPSG:32611 + vertical EPSG:5703 (NAVD88 height)`; just `EPSG:n` without a vertical
+/// part; `None` with neither an EPSG code nor a vertical CRS.
+pub fn crs_summary(g: &crate::model::Georef) -> Option<String> {
+    crs::crs_summary(g)
+}
+
 /// A GeoTIFF of `r` in memory, as `vtz decode -o X.tif` writes a raster (the same tags,
 /// GeoTIFF keys included). The C ABI gives a 1 x 1 one to GDAL so that a CRS stored only as
 /// GeoTIFF keys reads back exactly as from the source GeoTIFF.
 pub fn geotiff_bytes(r: &Raster) -> Result<Vec<u8>> {
     geotiff::write(r)
 }
+
+/// The names `--format` takes, for messages.
+const KNOWN_FORMATS: &str = "tif, png, terrain-rgb, terrarium, exr, hgt, asc, f32, vtz";
 
 /// Raster file formats vtz reads and writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,6 +61,8 @@ pub enum Format {
     Png,
     /// Mapbox Terrain-RGB PNG (height = -10000 + (R·65536 + G·256 + B)·0.1).
     TerrainRgb,
+    /// Terrarium PNG of Mapzen/AWS terrain tiles (height = (R·256 + G + B/256) - 32768).
+    Terrarium,
     /// OpenEXR, one f32 channel.
     Exr,
     /// SRTM `.hgt` (big-endian i16, -32768 = void, georef from the name).
@@ -73,7 +85,7 @@ impl Format {
             .unwrap_or_default();
         Format::from_name(&ext).map_err(|_| {
             Error::invalid(format!(
-                "cannot tell the format of {} from its extension '{ext}' (use --format; known: tif, png, terrain-rgb, exr, hgt, asc, f32, vtz)",
+                "cannot tell the format of {} from its extension '{ext}' (use --format; known: {KNOWN_FORMATS})",
                 path.display()
             ))
         })
@@ -85,12 +97,17 @@ impl Format {
             "tif" | "tiff" | "geotiff" | "gtiff" => Format::GeoTiff,
             "png" | "png16" => Format::Png,
             "terrain-rgb" | "terrainrgb" => Format::TerrainRgb,
+            "terrarium" => Format::Terrarium,
             "exr" => Format::Exr,
             "hgt" => Format::Hgt,
             "asc" | "ascii" => Format::Asc,
             "f32" | "raw" => Format::RawF32,
             "vtz" => Format::Vtz,
-            other => return Err(Error::invalid(format!("unknown raster format '{other}'"))),
+            other => {
+                return Err(Error::invalid(format!(
+                    "unknown raster format '{other}' (known: {KNOWN_FORMATS})"
+                )));
+            }
         })
     }
 
@@ -100,6 +117,7 @@ impl Format {
             Format::GeoTiff => "GeoTIFF",
             Format::Png => "PNG16",
             Format::TerrainRgb => "Terrain-RGB PNG",
+            Format::Terrarium => "Terrarium PNG",
             Format::Exr => "OpenEXR",
             Format::Hgt => "SRTM hgt",
             Format::Asc => "ESRI ASCII grid",
@@ -173,12 +191,42 @@ pub fn open_source(path: &Path, opts: &ReadOptions) -> Result<Box<dyn crate::mod
             ))
         }
         Format::Vtz => Err(not_here()),
-        _ => Ok(Box::new(read_path(path, opts)?)),
+        _ => {
+            let (raster, notes) = read_path_noted(path, opts)?;
+            Ok(Box::new(Noted { raster, notes }))
+        }
+    }
+}
+
+/// A raster read whole, with what its reader noted.
+struct Noted {
+    raster: Raster,
+    notes: Vec<String>,
+}
+
+impl crate::model::RowSource for Noted {
+    fn width(&self) -> usize {
+        self.raster.width
+    }
+    fn height(&self) -> usize {
+        self.raster.height
+    }
+    fn band(&mut self, y0: usize, rows: usize) -> Result<Raster> {
+        crate::model::RowSource::band(&mut self.raster, y0, rows)
+    }
+    fn notes(&self) -> Vec<String> {
+        self.notes.clone()
     }
 }
 
 /// Read a raster file, choosing the format by extension unless `opts.format` says.
 pub(crate) fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
+    read_path_noted(path, opts).map(|(r, _)| r)
+}
+
+/// [`read_path`], with the notes of [`crate::model::RowSource::notes`].
+fn read_path_noted(path: &Path, opts: &ReadOptions) -> Result<(Raster, Vec<String>)> {
+    let mut notes = Vec::new();
     let format = match opts.format {
         Some(f) => f,
         None => Format::from_path(path)?,
@@ -187,15 +235,23 @@ pub(crate) fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(&ctx, e))?;
     let r = match format {
         Format::GeoTiff => geotiff::read(&bytes, opts),
-        Format::Png | Format::TerrainRgb => {
+        Format::Png | Format::TerrainRgb | Format::Terrarium => {
             // The sidecar gives the mapping (unless the caller's overrides it) and the georef.
             let sidecar = png::read_sidecar(path)?;
             let mapping = match &opts.png_mapping {
                 Some(m) => Some(m.clone()),
                 None => sidecar.as_ref().map(|s| s.mapping.clone()),
             };
-            png::read(&bytes, mapping.as_ref(), format == Format::TerrainRgb, opts).map(|mut r| {
+            let rgb = match format {
+                Format::TerrainRgb => Some(png::RgbHeights::TerrainRgb),
+                Format::Terrarium => Some(png::RgbHeights::Terrarium),
+                _ => None,
+            };
+            png::read(&bytes, mapping.as_ref(), rgb, opts).map(|mut r| {
                 r.georef = sidecar.and_then(|s| s.georef);
+                if mapping.is_none() {
+                    notes.extend(png::offset_note(&r));
+                }
                 r
             })
         }
@@ -224,7 +280,7 @@ pub(crate) fn read_path(path: &Path, opts: &ReadOptions) -> Result<Raster> {
     let mut r = r.map_err(|e| e.context(&ctx))?;
     r.normalize_mask();
     r.validate().map_err(|e| e.context(&ctx))?;
-    Ok(r)
+    Ok((r, notes))
 }
 
 /// Encode a raster into the files `path` needs (the file itself plus any sidecar), without
@@ -251,16 +307,20 @@ pub(crate) fn encode_path(
             v.extend(geotiff_sidecar(path, raster.georef.as_ref()));
             v
         }
-        Format::Png | Format::TerrainRgb => {
-            // A raster read from Terrain-RGB keeps that encoding in a .png unless the caller
-            // asks for a 16-bit mapping.
-            let terrain_rgb = format == Format::TerrainRgb
-                || (opts.png_mapping.is_none()
-                    && raster.mapping == png::TERRAIN_RGB
-                    && raster.sample_type == SampleType::F32);
+        Format::Png | Format::TerrainRgb | Format::Terrarium => {
+            // A raster read from Terrain-RGB or Terrarium keeps that encoding in a .png unless
+            // the caller asks for a 16-bit mapping.
+            let rgb = match format {
+                Format::TerrainRgb => Some(png::RgbHeights::TerrainRgb),
+                Format::Terrarium => Some(png::RgbHeights::Terrarium),
+                _ if opts.png_mapping.is_none() && raster.sample_type == SampleType::F32 => {
+                    png::RgbHeights::of_mapping(&raster.mapping)
+                }
+                _ => None,
+            };
             let georef = raster.georef.as_ref();
-            let (png, sidecar, pam) = if terrain_rgb {
-                let (png, sidecar) = png::write_terrain_rgb(raster, opts.round)?;
+            let (png, sidecar, pam) = if let Some(k) = rgb {
+                let (png, sidecar) = png::write_rgb_heights(raster, k, opts.round)?;
                 // RGBA: GDAL sees four bands and takes voids from alpha; the PAM places it.
                 let pam = pam::Pam {
                     georef,
@@ -315,11 +375,19 @@ pub(crate) fn encode_path(
             v
         }
         Format::Hgt => {
+            // An .hgt is north-up by definition: a south-up raster is written flipped.
+            let flipped = north_up(raster);
+            let raster = &*flipped;
             let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
             hgt::check_name(raster, name, opts.drop_georef)?;
             one(hgt::write(raster)?)
         }
         Format::Asc => {
+            // An ESRI ASCII grid can only say north-up (`yllcorner` is the southern edge, the
+            // first row the northern one): a south-up raster is written flipped, so GDAL
+            // places every sample where the source has it.
+            let flipped = north_up(raster);
+            let raster = &*flipped;
             let mut v = one(asc::write(raster)?);
             // The header places the grid and declares its nodata; the CRS goes in the .prj,
             // GDAL_METADATA (when there is any) in the PAM.
@@ -384,6 +452,41 @@ pub fn geotiff_sidecar(path: &Path, georef: Option<&crate::model::Georef>) -> Op
     })
 }
 
+/// `r` with its rows in north-up order: a south-up raster (row 0 at the south, a negative
+/// `Georef::pixel_size[1]`) flipped top to bottom with its georef moved to the northern edge,
+/// for the formats that can only say north-up (ESRI ASCII grids, `.hgt`); any other raster
+/// as it is. Every sample keeps its place on the ground.
+pub(crate) fn north_up(r: &Raster) -> std::borrow::Cow<'_, Raster> {
+    use crate::model::RasterType;
+    let Some(g) = r.georef.as_ref().filter(|g| g.pixel_size[1] < 0.0) else {
+        return std::borrow::Cow::Borrowed(r);
+    };
+    let w = r.width;
+    let flip = |v: &[f64]| -> Vec<f64> { v.chunks_exact(w).rev().flatten().copied().collect() };
+    let data = flip(&r.data);
+    let mask = r
+        .mask
+        .as_ref()
+        .map(|m| m.chunks_exact(w).rev().flatten().copied().collect());
+    // The new row 0 is the old last row: its outer edge (area) or its centre (point).
+    let mut north = g.window(
+        0,
+        match g.raster_type {
+            RasterType::Area => r.height,
+            RasterType::Point => r.height - 1,
+        },
+    );
+    north.pixel_size[1] = -g.pixel_size[1];
+    std::borrow::Cow::Owned(Raster {
+        width: r.width,
+        height: r.height,
+        data,
+        mask,
+        georef: Some(north),
+        ..r.clone_meta()
+    })
+}
+
 /// Add the PAM `.aux.xml` of the file at `path` when it has anything to say.
 fn push_pam(v: &mut Vec<OutputFile>, path: &Path, p: &pam::Pam) {
     if let Some(bytes) = pam::aux_xml(p) {
@@ -419,4 +522,39 @@ pub(crate) fn write_path(raster: &Raster, path: &Path, opts: &WriteOptions) -> R
 
 fn not_here() -> Error {
     Error::unsupported("a .vtz file is read and written by the codec, not as a raster format")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{Georef, RasterType};
+
+    /// A south-up 3 × 3 SRTM tile (row 0 at latitude -1): the `.hgt` and the ASCII grid,
+    /// which can only say north-up, hold it flipped, each post where it lies.
+    #[test]
+    fn north_up_only_formats_get_a_south_up_raster_flipped() {
+        let vals: Vec<f64> = (1..=9).map(f64::from).collect();
+        let mut r = Raster::from_values(3, 3, vals, None, SampleType::I16).unwrap();
+        r.georef = Some(Georef {
+            origin: [10.0, -1.0],
+            pixel_size: [0.5, -0.5],
+            raster_type: RasterType::Point,
+            epsg: Some(4326),
+            wkt: None,
+            geokeys: None,
+        });
+        let files = encode_path(&r, Path::new("S01E010.hgt"), &WriteOptions::default()).unwrap();
+        let hgt = hgt::read(&files[0].bytes, "S01E010.hgt", &ReadOptions::default()).unwrap();
+        assert_eq!(hgt.data, [7.0, 8.0, 9.0, 4.0, 5.0, 6.0, 1.0, 2.0, 3.0]);
+        assert_eq!(hgt.georef.as_ref().unwrap().origin, [10.0, 0.0]);
+        let files = encode_path(&r, Path::new("t.asc"), &WriteOptions::default()).unwrap();
+        let asc = asc::read(&files[0].bytes, &ReadOptions::default()).unwrap();
+        assert_eq!(asc.data, hgt.data);
+        let g = asc.georef.unwrap();
+        assert_eq!((g.origin, g.pixel_size), ([10.0, 0.0], [0.5, 0.5]));
+        // A north-up raster is left as it is.
+        let mut n = r.clone();
+        n.georef.as_mut().unwrap().pixel_size[1] = 0.5;
+        assert!(matches!(north_up(&n), std::borrow::Cow::Borrowed(_)));
+    }
 }

@@ -6,8 +6,12 @@
 //! `{"scale": s, "offset": o, "nodata_code": c|null, "georef": {...}|null}` (the georef
 //! object is the shared one of [`crate::formats::sidecar`]).
 //!
-//! 8-bit RGB/RGBA PNGs are Terrain-RGB: `height = -10000 + (R·65536 + G·256 + B) · 0.1`,
-//! computed in f64 and rounded to f32; alpha 0 marks voids.
+//! 8-bit RGB/RGBA PNGs hold heights in one of two encodings of web-map terrain tiles (alpha 0
+//! marks voids), said by `--format` or vtz's sidecar:
+//! - Mapbox Terrain-RGB: `height = -10000 + (R·65536 + G·256 + B) · 0.1`, computed in f64
+//!   and rounded to f32;
+//! - Terrarium (Mapzen/AWS terrain tiles): `height = (R·256 + G + B/256) - 32768`, exact in
+//!   f32 (steps of 1/256).
 
 use crate::error::{Error, Result};
 use crate::formats::ReadOptions;
@@ -76,6 +80,51 @@ const TRGB_MAX_CODE: u32 = 0xFF_FFFF;
 /// Height of a Terrain-RGB code, as the corpus decodes it: f64 arithmetic, rounded to f32.
 fn trgb_value(code: u32) -> f64 {
     (-10000.0 + code as f64 * 0.1) as f32 as f64
+}
+
+/// Terrarium mapping of the 24-bit code `R·65536 + G·256 + B`: height = code / 256 - 32768.
+pub const TERRARIUM: ValueMapping = ValueMapping {
+    scale: 1.0 / 256.0,
+    offset: -32768.0,
+};
+
+/// How an 8-bit RGB(A) PNG holds heights in its 24-bit code `R·65536 + G·256 + B`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RgbHeights {
+    /// Mapbox Terrain-RGB: `-10000 + 0.1 · code`.
+    TerrainRgb,
+    /// Terrarium: `code / 256 - 32768` (`(R·256 + G + B/256) - 32768`).
+    Terrarium,
+}
+
+impl RgbHeights {
+    /// The value mapping of the codes.
+    pub fn mapping(self) -> ValueMapping {
+        match self {
+            RgbHeights::TerrainRgb => TERRAIN_RGB,
+            RgbHeights::Terrarium => TERRARIUM,
+        }
+    }
+    /// The encoding a mapping names, if any.
+    pub fn of_mapping(m: &ValueMapping) -> Option<RgbHeights> {
+        [RgbHeights::TerrainRgb, RgbHeights::Terrarium]
+            .into_iter()
+            .find(|k| k.mapping() == *m)
+    }
+    /// The height of a code, as f32 (exact for Terrarium).
+    fn value(self, code: u32) -> f64 {
+        match self {
+            RgbHeights::TerrainRgb => trgb_value(code),
+            RgbHeights::Terrarium => (code as f64 / 256.0 - 32768.0) as f32 as f64,
+        }
+    }
+    /// Its name for people.
+    pub fn name(self) -> &'static str {
+        match self {
+            RgbHeights::TerrainRgb => "Terrain-RGB",
+            RgbHeights::Terrarium => "Terrarium",
+        }
+    }
 }
 
 /// `path` + `.json`: where a PNG's mapping sidecar lives.
@@ -196,12 +245,13 @@ fn mark_invalid(mask: &mut Option<Vec<bool>>, n: usize, i: usize) {
     mask.get_or_insert_with(|| vec![true; n])[i] = false;
 }
 
-/// Read a PNG height map. `mapping` applies to grey PNGs (identity when `None`); RGB/RGBA
-/// PNGs are always Terrain-RGB; `terrain_rgb` insists on Terrain-RGB.
+/// Read a PNG height map. `mapping` applies to grey PNGs (identity when `None`); an RGB/RGBA
+/// PNG is read as heights only in the encoding `rgb` insists on, or that `mapping` names (vtz's
+/// sidecar of a Terrain-RGB or Terrarium PNG).
 pub fn read(
     bytes: &[u8],
     mapping: Option<&PngMapping>,
-    terrain_rgb: bool,
+    rgb: Option<RgbHeights>,
     opts: &ReadOptions,
 ) -> Result<Raster> {
     let h = read_ihdr(bytes)?;
@@ -221,19 +271,21 @@ pub fn read(
             )));
         }
     };
-    let says_trgb = mapping.is_some_and(|m| {
-        m.scale == TERRAIN_RGB.scale && m.offset == TERRAIN_RGB.offset && m.nodata_code.is_none()
-    });
-    if is_rgb && !terrain_rgb && !says_trgb {
+    let sidecar_says = mapping
+        .filter(|m| m.nodata_code.is_none())
+        .and_then(|m| RgbHeights::of_mapping(&m.value_mapping()));
+    let encoding = rgb.or(sidecar_says);
+    if is_rgb && encoding.is_none() {
         // Colour PNGs are pictures far more often than height maps: reading one as heights
         // is a choice the caller makes.
         return Err(Error::unsupported(format!(
-            "{desc} PNG: vtz reads colour PNGs only as Mapbox Terrain-RGB heights; if it is one, say so with --format terrain-rgb"
+            "{desc} PNG: vtz reads colour PNGs only as Mapbox Terrain-RGB or Terrarium heights; if it is one, say so with --format terrain-rgb or --format terrarium"
         )));
     }
-    if terrain_rgb && !is_rgb {
+    if let (Some(k), false) = (rgb, is_rgb) {
         return Err(Error::unsupported(format!(
-            "Terrain-RGB needs an 8-bit RGB or RGBA PNG, this one is {desc}"
+            "{} needs an 8-bit RGB or RGBA PNG, this one is {desc}",
+            k.name()
         )));
     }
     let n = check_size(h.width as u64, h.height as u64, opts.max_samples())?;
@@ -256,7 +308,7 @@ pub fn read(
     let mut data = Vec::with_capacity(n);
     let mut mask: Option<Vec<bool>> = None;
 
-    if is_rgb {
+    if let (true, Some(k)) = (is_rgb, encoding) {
         let alpha = match ct {
             ColorType::Rgb8 => false,
             ColorType::Rgba8 => true,
@@ -272,11 +324,11 @@ pub fn read(
                 data.push(f64::NAN);
             } else {
                 let code = (px[0] as u32) << 16 | (px[1] as u32) << 8 | px[2] as u32;
-                data.push(trgb_value(code));
+                data.push(k.value(code));
             }
         }
         return Ok(Raster {
-            mapping: TERRAIN_RGB,
+            mapping: k.mapping(),
             ..Raster::from_parts(width, height, data, mask, None, SampleType::F32)
         });
     }
@@ -336,6 +388,46 @@ pub fn read(
         mapping: vm,
         ..Raster::from_parts(width, height, data, mask, nodata, sample_type)
     })
+}
+
+/// Codes of SRTM-like heights + 32768 (16-bit PNGs of terrain often store `metres + 32768`,
+/// voids as 0): the deepest trench and the highest peak on either side of 32768.
+const OFFSET_CODES: std::ops::RangeInclusive<f64> = 21_000.0..=42_000.0;
+
+/// A note for a 16-bit grey PNG read without a mapping whose valid codes (0 aside) all sit
+/// around 32768, as heights + 32768 do: what `--png-offset -32768 --png-nodata 0` would read
+/// instead. The data is read as the codes either way.
+pub(crate) fn offset_note(r: &Raster) -> Option<String> {
+    if r.sample_type != SampleType::U16 || !r.mapping.is_identity() {
+        return None;
+    }
+    let (mut lo, mut hi, mut zeros) = (f64::INFINITY, f64::NEG_INFINITY, 0usize);
+    for (i, &v) in r.data.iter().enumerate() {
+        if !r.is_valid(i) {
+            continue;
+        }
+        if v == 0.0 {
+            zeros += 1;
+            continue;
+        }
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if !(OFFSET_CODES.contains(&lo) && OFFSET_CODES.contains(&hi)) {
+        return None;
+    }
+    let voids = match zeros {
+        0 => String::new(),
+        1 => " and code 0 (1 sample here) as nodata".to_string(),
+        n => format!(" and code 0 ({n} samples here) as nodata"),
+    };
+    Some(format!(
+        "this 16-bit PNG's codes ({lo}…{hi}) sit around 32768, as heights + 32768 do (SRTM \
+         PNGs); they are read as they are, with no nodata: --png-offset -32768 --png-nodata 0 \
+         would read them as {}…{} m{voids}",
+        lo - 32768.0,
+        hi - 32768.0
+    ))
 }
 
 /// The code in `lo..=hi` nearest `approx` whose decoded value is closest to `v`.
@@ -491,7 +583,20 @@ const KEEP_HINT: &str = ", choose --png-scale/--png-offset, or write .tif, which
 
 /// Write a Mapbox Terrain-RGB PNG (RGBA8, alpha 255; invalid samples are (0, 0, 0, 0)),
 /// plus a sidecar holding the georef when the raster has one.
-pub fn write_terrain_rgb(r: &Raster, round: bool) -> Result<(Vec<u8>, Option<Vec<u8>>)> {
+#[cfg(test)]
+fn write_terrain_rgb(r: &Raster, round: bool) -> Result<(Vec<u8>, Option<Vec<u8>>)> {
+    write_rgb_heights(r, RgbHeights::TerrainRgb, round)
+}
+
+/// Write an RGBA8 PNG of heights in encoding `k` (alpha 255; invalid samples are
+/// (0, 0, 0, 0)), plus a sidecar naming the encoding and holding the georef when the raster
+/// has one. A value the encoding cannot hold exactly is refused unless `round`.
+pub fn write_rgb_heights(
+    r: &Raster,
+    k: RgbHeights,
+    round: bool,
+) -> Result<(Vec<u8>, Option<Vec<u8>>)> {
+    let m = k.mapping();
     let mut buf = Vec::with_capacity(r.len() * 4);
     let mut worst = Rounding::default();
     for (i, &v) in r.data.iter().enumerate() {
@@ -499,25 +604,32 @@ pub fn write_terrain_rgb(r: &Raster, round: bool) -> Result<(Vec<u8>, Option<Vec
             buf.extend_from_slice(&[0, 0, 0, 0]);
             continue;
         }
-        let approx = TERRAIN_RGB.to_code(v).round();
+        let approx = m.to_code(v).round();
         if !(approx >= 0.0 && approx <= TRGB_MAX_CODE as f64) {
             return Err(Error::invalid(format!(
-                "sample {i} (row {}, col {}) = {v} is outside the Terrain-RGB range -10000..=1667721.5",
+                "sample {i} (row {}, col {}) = {v} is outside the {} range {}..={}",
                 i / r.width,
-                i % r.width
+                i % r.width,
+                k.name(),
+                k.value(0),
+                k.value(TRGB_MAX_CODE)
             )));
         }
-        let c = best_code(approx, 0, TRGB_MAX_CODE, v, trgb_value);
-        worst.note(i, v, trgb_value(c));
+        let c = best_code(approx, 0, TRGB_MAX_CODE, v, |c| k.value(c));
+        worst.note(i, v, k.value(c));
         buf.extend_from_slice(&[(c >> 16) as u8, (c >> 8) as u8, c as u8, 255]);
     }
-    worst.check(r, round, "Terrain-RGB's 0.1 steps", KEEP_HINT)?;
+    let steps = match k {
+        RgbHeights::TerrainRgb => "Terrain-RGB's 0.1 steps",
+        RgbHeights::Terrarium => "Terrarium's 1/256 steps",
+    };
+    worst.check(r, round, steps, KEEP_HINT)?;
     let png = encode_png(&buf, r, ExtendedColorType::Rgba8)?;
     let sidecar = match &r.georef {
         Some(g) => Some(sidecar_bytes(
             &PngMapping {
-                scale: TERRAIN_RGB.scale,
-                offset: TERRAIN_RGB.offset,
+                scale: m.scale,
+                offset: m.offset,
                 nodata_code: None,
             },
             Some(g),
@@ -582,7 +694,7 @@ mod tests {
             offset: -100.0,
             nodata_code: Some(0),
         };
-        let r = read(&png, Some(&m), false, &opts()).unwrap();
+        let r = read(&png, Some(&m), None, &opts()).unwrap();
         assert_eq!(r.sample_type, SampleType::U16);
         assert_eq!(r.nodata, Some(-100.0));
         assert_eq!(r.data, [-100.0, -99.5, -99.0, 16284.0, 32667.5, -100.0]);
@@ -603,11 +715,11 @@ mod tests {
         let s = parse_sidecar(&side.unwrap(), "test").unwrap();
         assert_eq!(s.mapping, m);
         assert!(s.georef.is_none());
-        let back = read(&out, Some(&s.mapping), false, &opts()).unwrap();
+        let back = read(&out, Some(&s.mapping), None, &opts()).unwrap();
         assert_same(&r, &back, "png round trip");
         // Forcing Terrain-RGB on a grey PNG is refused.
         assert!(matches!(
-            read(&png, None, true, &opts()),
+            read(&png, None, Some(RgbHeights::TerrainRgb), &opts()),
             Err(Error::Unsupported { .. })
         ));
     }
@@ -620,7 +732,7 @@ mod tests {
         assert!(side.is_none());
         assert_same(
             &r,
-            &read(&png, None, false, &opts()).unwrap(),
+            &read(&png, None, None, &opts()).unwrap(),
             "png round trip",
         );
         // u8 rasters are written as 8-bit grey and read back as u8.
@@ -630,7 +742,7 @@ mod tests {
         assert_eq!(pixels(&png).0, ColorType::L8);
         assert_same(
             &r,
-            &read(&png, None, false, &opts()).unwrap(),
+            &read(&png, None, None, &opts()).unwrap(),
             "png round trip",
         );
     }
@@ -642,7 +754,7 @@ mod tests {
         let s = parse_sidecar(&side.unwrap(), "t").unwrap();
         assert_eq!(s.mapping.nodata_code, Some(65535));
         assert_eq!(pixels(&png).1, [0, 65535, 7]);
-        let back = read(&png, Some(&s.mapping), false, &opts()).unwrap();
+        let back = read(&png, Some(&s.mapping), None, &opts()).unwrap();
         assert_eq!(back.mask, r.mask);
         let r = Raster::from_values(2, 1, vec![-1.0, 3.0], None, SampleType::I16).unwrap();
         match write(&r, None, false) {
@@ -689,12 +801,12 @@ mod tests {
         let (png, side) = write_terrain_rgb(&r, false).unwrap();
         let s = parse_sidecar(&side.unwrap(), "t").unwrap();
         // A colour PNG is heights only when the caller or vtz's own sidecar says so.
-        let refused = read(&png, None, false, &opts()).unwrap_err().to_string();
+        let refused = read(&png, None, None, &opts()).unwrap_err().to_string();
         assert!(refused.contains("--format terrain-rgb"), "{refused}");
-        let mut back = read(&png, Some(&s.mapping), false, &opts()).unwrap();
+        let mut back = read(&png, Some(&s.mapping), None, &opts()).unwrap();
         assert_same(
             &back,
-            &read(&png, None, true, &opts()).unwrap(),
+            &read(&png, None, Some(RgbHeights::TerrainRgb), &opts()).unwrap(),
             "sidecar or flag",
         );
         assert_eq!(back.mapping, TERRAIN_RGB);
@@ -707,20 +819,69 @@ mod tests {
         ));
     }
 
+    /// Terrarium (`code / 256 - 32768`) is read exactly, told by the flag or by vtz's sidecar,
+    /// and written back to the same pixels; the offset note speaks only of 16-bit grey codes
+    /// around 32768.
+    #[test]
+    fn terrarium_roundtrip_and_the_offset_note() {
+        let (w, h) = (7, 4);
+        let data: Vec<f64> = (0..w * h)
+            .map(|i| -32768.0 + (i as f64) * 2345.5 + (i % 5) as f64 / 256.0)
+            .collect();
+        let mut r = Raster::from_values(w, h, data, None, SampleType::F32).unwrap();
+        r.mapping = TERRARIUM;
+        let (png, side) = write_rgb_heights(&r, RgbHeights::Terrarium, false).unwrap();
+        assert!(side.is_none(), "no georef, no sidecar");
+        let back = read(&png, None, Some(RgbHeights::Terrarium), &opts()).unwrap();
+        assert_eq!(back.mapping, TERRARIUM);
+        assert_same(&r, &back, "terrarium");
+        let (_, px) = pixels(&png);
+        let code = px[4] << 16 | px[5] << 8 | px[6];
+        assert_eq!(code, 2345 * 256 + 128 + 1, "sample 1's code, RGBA");
+        let m = PngMapping {
+            scale: TERRARIUM.scale,
+            offset: TERRARIUM.offset,
+            nodata_code: None,
+        };
+        assert_same(
+            &back,
+            &read(&png, Some(&m), None, &opts()).unwrap(),
+            "sidecar",
+        );
+        let e = read(&png, None, None, &opts()).unwrap_err().to_string();
+        assert!(e.contains("--format terrarium"), "{e}");
+
+        let codes =
+            |v: Vec<f64>| Raster::from_values(v.len(), 1, v, None, SampleType::U16).unwrap();
+        let note = offset_note(&codes(vec![32731.0, 0.0, 34254.0])).unwrap();
+        assert!(note.contains("(32731…34254)"), "{note}");
+        assert!(
+            note.contains("-37…1486 m and code 0 (1 sample here) as nodata"),
+            "{note}"
+        );
+        assert_eq!(offset_note(&codes(vec![100.0, 34254.0])), None);
+        let mut mapped = codes(vec![32731.0, 34254.0]);
+        mapped.mapping = ValueMapping {
+            scale: 1.0,
+            offset: -32768.0,
+        };
+        assert_eq!(offset_note(&mapped), None);
+    }
+
     #[test]
     fn unsupported_kinds() {
         let mut out = Vec::new();
         PngEncoder::new(&mut out)
             .write_image(&[0u8; 6], 1, 1, ExtendedColorType::Rgb16)
             .unwrap();
-        match read(&out, None, false, &opts()) {
+        match read(&out, None, None, &opts()) {
             Err(Error::Unsupported { what }) => assert!(what.contains("16-bit RGB"), "{what}"),
             other => panic!("{other:?}"),
         }
         let mut pal = grey16(1, 1, &[5]);
         pal[24] = 8;
         pal[25] = 3; // colour type 3 = palette (the CRC no longer matters: refused first)
-        match read(&pal, None, false, &opts()) {
+        match read(&pal, None, None, &opts()) {
             Err(Error::Unsupported { what }) => assert!(what.contains("palette"), "{what}"),
             other => panic!("{other:?}"),
         }
@@ -729,7 +890,7 @@ mod tests {
         PngEncoder::new(&mut out)
             .write_image(&[10, 255, 20, 0], 2, 1, ExtendedColorType::La8)
             .unwrap();
-        let r = read(&out, None, false, &opts()).unwrap();
+        let r = read(&out, None, None, &opts()).unwrap();
         assert_eq!(r.sample_type, SampleType::U8);
         assert_eq!(r.mask.as_deref(), Some(&[true, false][..]));
     }
@@ -739,25 +900,25 @@ mod tests {
         let png = grey16(4, 3, &[1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]);
         // Every cut before the 12-byte IEND chunk fails (after it, the pixels are complete).
         for cut in 0..png.len() {
-            let res = read(&png[..cut], None, false, &opts());
+            let res = read(&png[..cut], None, None, &opts());
             assert!(res.is_err() || cut >= png.len() - 12, "cut {cut}");
         }
         let mut rng = Rng(11);
         for len in [0, 8, 33, 100, 1000] {
-            assert!(read(&rng.bytes(len), None, false, &opts()).is_err());
+            assert!(read(&rng.bytes(len), None, None, &opts()).is_err());
         }
         // Flip bytes in the data: errors, never panics.
         for k in 0..200 {
             let mut b = png.clone();
             let i = 8 + (rng.next() as usize) % (b.len() - 8);
             b[i] ^= 1 << (k % 8);
-            let _ = read(&b, None, false, &opts());
+            let _ = read(&b, None, None, &opts());
         }
         let mut big = png.clone();
         big[16..20].copy_from_slice(&100_000u32.to_be_bytes());
         big[20..24].copy_from_slice(&100_000u32.to_be_bytes());
         assert!(matches!(
-            read(&big, None, false, &opts()),
+            read(&big, None, None, &opts()),
             Err(Error::LimitExceeded { .. })
         ));
         assert!(matches!(
@@ -773,7 +934,7 @@ mod tests {
         let names = ["scape_crater", "scape_ashby", "scape_ozark"];
         for_each_corpus(&names, |dir, name| {
             let bytes = std::fs::read(dir.join(format!("{name}.png"))).unwrap();
-            let r = read(&bytes, None, false, &opts()).unwrap();
+            let r = read(&bytes, None, None, &opts()).unwrap();
             assert_eq!(r.sample_type, SampleType::U16);
             assert_eq!(raster_bits(&r), raw_bits(dir, name), "{name}");
             let (png, side) = write(&r, None, false).unwrap();
@@ -781,7 +942,7 @@ mod tests {
             assert_eq!(pixels(&png), pixels(&bytes), "{name}: codes differ");
             assert_same(
                 &r,
-                &read(&png, None, false, &opts()).unwrap(),
+                &read(&png, None, None, &opts()).unwrap(),
                 "png round trip",
             );
         });
@@ -831,7 +992,7 @@ mod tests {
         let name = "mapbox_fuji_terrainrgb";
         let src = dir.join(format!("{name}.png"));
         let bytes = std::fs::read(&src).unwrap();
-        let r = read(&bytes, None, true, &opts()).unwrap();
+        let r = read(&bytes, None, Some(RgbHeights::TerrainRgb), &opts()).unwrap();
         assert_eq!(r.sample_type, SampleType::F32);
         assert_eq!(r.mapping, TERRAIN_RGB);
         assert_eq!(raster_bits(&r), raw_bits(&dir, name));
@@ -842,7 +1003,7 @@ mod tests {
         assert_same(&r, &read_path(&src, &forced).unwrap(), "png round trip");
         let (png, side) = write_terrain_rgb(&r, false).unwrap();
         assert!(side.is_none());
-        let back = read(&png, None, true, &opts()).unwrap();
+        let back = read(&png, None, Some(RgbHeights::TerrainRgb), &opts()).unwrap();
         assert_same(&r, &back, "png round trip");
         // Same RGB codes as the source (alpha is 255 in both).
         assert_eq!(pixels(&png), pixels(&bytes));

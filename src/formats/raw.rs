@@ -1,7 +1,8 @@
 //! Raw little-endian f32 rasters (`NAME.f32`) with a `NAME.json` sidecar: the corpus storage format.
 //!
-//! The `.f32` file holds `width × height` little-endian `f32` values, row-major, row 0 = north,
-//! no header. The json sidecar holds `width`, `height`, `source_dtype`, `nodata`, `dx`, `dy`
+//! The `.f32` file holds `width × height` little-endian `f32` values, row-major, row 0 = north
+//! (south when the georef's `pixel_size[1]` is negative, as the sidecar's `row_order` then
+//! says), no header. The json sidecar holds `width`, `height`, `source_dtype`, `nodata`, `dx`, `dy`
 //! and, when vtz wrote it, a `georef` object and an optional `value_mapping`
 //! (`{"scale": s, "offset": o}`). The file holds the values themselves (metres, not PNG
 //! codes); `source_dtype` is the type of the integer codes they came from, through
@@ -473,7 +474,11 @@ pub fn write(r: &Raster) -> Result<(Vec<u8>, Vec<u8>)> {
         nodata: r.nodata.map(ExactF64),
         dx: r.georef.as_ref().map(|g| ExactF64(g.pixel_size[0])),
         dy: r.georef.as_ref().map(|g| ExactF64(g.pixel_size[1])),
-        row_order: "row 0 is the northern (top) edge; row-major, little-endian float32",
+        row_order: if r.georef.as_ref().is_some_and(|g| g.pixel_size[1] < 0.0) {
+            "row 0 is the southern (bottom) edge; row-major, little-endian float32"
+        } else {
+            "row 0 is the northern (top) edge; row-major, little-endian float32"
+        },
         georef: r.georef.as_ref().map(GeorefJson::from),
         value_mapping: (!r.mapping.is_identity()).then_some(MappingJson {
             scale: ExactF64(r.mapping.scale),

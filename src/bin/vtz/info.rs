@@ -168,8 +168,8 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
                     RasterType::Point => "pixel is point",
                 }
             );
-            if let Some(e) = g.epsg {
-                outln!("crs           EPSG:{e}");
+            if let Some(c) = vtz::formats::crs_summary(g) {
+                outln!("crs           {c}");
             }
             if g.geokeys.is_some() {
                 outln!("geotiff keys  kept");

@@ -111,7 +111,10 @@ pub(super) fn read_georef(dec: &mut Dec<'_>) -> Result<Option<Georef>> {
                     t.len()
                 )));
             }
-            let (sx, sy) = (s[0], s[1]);
+            // A negative ScaleY is read as GDAL reads it by default: as a north-up raster
+            // (GDAL warns "negative value for ScaleY ... assumes the file was intended to be
+            // north-up"); a south-up raster is stored with a ModelTransformation.
+            let (sx, sy) = (s[0], s[1].abs());
             let (i, j, x, y) = (t[0], t[1], t[3], t[4]);
             Some(([x - i * sx, y + j * sy], [sx, sy]))
         }
@@ -178,6 +181,8 @@ pub(super) fn read_georef(dec: &mut Dec<'_>) -> Result<Option<Georef>> {
 pub(super) struct GeoTags {
     pixel_scale: Option<[f64; 3]>,
     tiepoint: Option<[f64; 6]>,
+    /// ModelTransformation, instead of the two above, for a raster that is not north-up.
+    transformation: Option<[f64; 16]>,
     key_directory: Option<Vec<u16>>,
     key_doubles: Vec<f64>,
     key_ascii: String,
@@ -197,8 +202,22 @@ pub(super) fn geo_tags(georef: Option<&Georef>) -> Result<GeoTags> {
             "georeferencing has a non-finite origin or pixel size",
         ));
     }
-    tags.pixel_scale = Some([g.pixel_size[0], g.pixel_size[1], 0.0]);
-    tags.tiepoint = Some([0.0, 0.0, 0.0, g.origin[0], g.origin[1], 0.0]);
+    let [dx, dy] = g.pixel_size;
+    let [x0, y0] = g.origin;
+    if dx > 0.0 && dy > 0.0 {
+        tags.pixel_scale = Some([dx, dy, 0.0]);
+        tags.tiepoint = Some([0.0, 0.0, 0.0, x0, y0, 0.0]);
+    } else {
+        // South-up (row 0 at the south: y grows with the row) or east-to-west: ModelPixelScale
+        // cannot say so (GDAL reads a negative ScaleY as north-up), so the placement goes in a
+        // ModelTransformation, as GDAL writes such a raster. Rows stay in the source's order.
+        tags.transformation = Some([
+            dx, 0.0, 0.0, x0, //
+            0.0, -dy, 0.0, y0, //
+            0.0, 0.0, 0.0, 0.0, //
+            0.0, 0.0, 0.0, 1.0,
+        ]);
+    }
     let raster_type = match g.raster_type {
         RasterType::Area => RASTER_PIXEL_IS_AREA,
         RasterType::Point => RASTER_PIXEL_IS_POINT,
@@ -287,6 +306,10 @@ pub(super) fn write_geo_tags<W: Write + Seek, K: TiffKind>(
     }
     if let Some(t) = &tags.tiepoint {
         e.write_tag(Tag::ModelTiepointTag, &t[..])
+            .map_err(enc_err)?;
+    }
+    if let Some(m) = &tags.transformation {
+        e.write_tag(Tag::from_u16_exhaustive(TAG_MODEL_TRANSFORMATION), &m[..])
             .map_err(enc_err)?;
     }
     if let Some(d) = &tags.key_directory {
@@ -464,6 +487,55 @@ mod tests {
         b.double(TAG_MODEL_TIEPOINT, &[0.0; 12]);
         let e = read(&b.build(&[1, 0, 2, 0]), &opts()).unwrap_err();
         assert!(is_unsupported(&e), "{e}");
+    }
+
+    /// South-up (row 0 at the south) is written as GDAL writes it, with a ModelTransformation
+    /// (a negative ModelPixelScale Y is what GDAL reads as north-up), and reads back the same.
+    #[test]
+    fn south_up_is_written_with_a_model_transformation() {
+        let mut r = small_i16_raster();
+        let g = r.georef.as_mut().unwrap();
+        g.pixel_size[1] = -g.pixel_size[1];
+        let south_up = r.georef.clone().unwrap();
+        let bytes = write(&r).unwrap();
+        let back = read(&bytes, &opts()).unwrap();
+        let bg = back.georef.clone().unwrap();
+        assert_eq!(
+            (bg.origin, bg.pixel_size, bg.raster_type, bg.epsg),
+            (
+                south_up.origin,
+                south_up.pixel_size,
+                south_up.raster_type,
+                south_up.epsg
+            )
+        );
+        let mut dec = tiff::decoder::Decoder::new(std::io::Cursor::new(&bytes[..])).unwrap();
+        assert!(dec.find_tag(Tag::ModelPixelScaleTag).unwrap().is_none());
+        let m = tag_f64s(&mut dec, TAG_MODEL_TRANSFORMATION)
+            .unwrap()
+            .unwrap();
+        let [dx, dy] = south_up.pixel_size;
+        let [x0, y0] = south_up.origin;
+        assert_eq!(m[..8], [dx, 0.0, 0.0, x0, 0.0, -dy, 0.0, y0]);
+
+        // North-up stays on ModelPixelScale + ModelTiepoint.
+        let n = small_i16_raster();
+        let bytes = write(&n).unwrap();
+        let mut dec = tiff::decoder::Decoder::new(std::io::Cursor::new(&bytes[..])).unwrap();
+        assert!(dec.find_tag(Tag::ModelTransformationTag).unwrap().is_none());
+        assert!(dec.find_tag(Tag::ModelPixelScaleTag).unwrap().is_some());
+    }
+
+    /// A negative ModelPixelScale Y, as vtz wrote south-up rasters before: GDAL reads it as
+    /// north-up ("negative value for ScaleY"), and so does vtz.
+    #[test]
+    fn a_negative_scale_y_is_read_as_gdal_reads_it() {
+        let mut b = Builder::basic(false, 2, 2, 16, 2, 8);
+        b.double(TAG_MODEL_PIXEL_SCALE, &[2.0, -3.0, 0.0]);
+        b.double(TAG_MODEL_TIEPOINT, &[0.0, 0.0, 0.0, 100.0, 200.0, 0.0]);
+        let r = read(&b.build(&i16_bytes(false, &[1, 2, 3, 4])), &opts()).unwrap();
+        let g = r.georef.unwrap();
+        assert_eq!((g.origin, g.pixel_size), ([100.0, 200.0], [2.0, 3.0]));
     }
 
     #[test]

@@ -147,6 +147,7 @@ pub(super) fn read(path: &Path, class: Option<u8>) -> Result<(PointSet, Option<S
     let (epsg, wkt) = crs_of(header);
     let format = *header.point_format();
     let declared = header.number_of_points();
+    let extra = (format.extra_bytes > 0).then(|| extra_bytes_note(header, format.extra_bytes));
     let reserve = if class.is_some() {
         0
     } else {
@@ -218,6 +219,7 @@ pub(super) fn read(path: &Path, class: Option<u8>) -> Result<(PointSet, Option<S
     if format.has_nir {
         dropped.push("NIR".to_string());
     }
+    dropped.extend(extra);
     let note = (!dropped.is_empty()).then(|| {
         let n = format.to_u8().map_or("?".to_string(), |n| n.to_string());
         format!(
@@ -230,6 +232,34 @@ pub(super) fn read(path: &Path, class: Option<u8>) -> Result<(PointSet, Option<S
     ps.epsg = epsg;
     ps.wkt = wkt;
     Ok((ps, note))
+}
+
+/// What the extra bytes of each point hold, for the note: the attributes the Extra Bytes
+/// VLR (LASF_Spec, record 4: 192 bytes per attribute, its name in bytes 4..36) names, else
+/// their count.
+fn extra_bytes_note(header: &::las::Header, n: u16) -> String {
+    let names: Vec<String> = header
+        .vlrs()
+        .iter()
+        .chain(header.evlrs())
+        .filter(|v| v.user_id.trim_end_matches('\0') == "LASF_Spec" && v.record_id == 4)
+        .flat_map(|v| v.data.chunks_exact(192))
+        .map(|d| {
+            let name = &d[4..36];
+            let end = name.iter().position(|&b| b == 0).unwrap_or(name.len());
+            String::from_utf8_lossy(&name[..end]).trim().to_string()
+        })
+        .filter(|s| !s.is_empty())
+        .collect();
+    if names.is_empty() {
+        format!("{n} extra bytes per point")
+    } else {
+        format!(
+            "extra-bytes attribute{} {} ({n} bytes per point)",
+            if names.len() == 1 { "" } else { "s" },
+            names.join(", ")
+        )
+    }
 }
 
 /// The offset of one axis: the minimum rounded down to a multiple of 1000 (or of `scale`,
@@ -454,6 +484,53 @@ mod tests {
             want.iter().map(|v| v / 2.0).collect::<Vec<_>>()
         );
         assert_eq!(read_points(&p, &Default::default()).unwrap().len(), 100);
+    }
+
+    /// Extra-bytes attributes are dropped like the rest, and the note names them (from the
+    /// Extra Bytes VLR), or counts their bytes when no VLR names them.
+    #[test]
+    fn the_note_names_dropped_extra_bytes() {
+        let dir = tempfile::tempdir().unwrap();
+        for named in [true, false] {
+            let p = dir.path().join(format!("extra_{named}.las"));
+            let mut b = ::las::Builder::from((1, 4));
+            b.point_format = ::las::point::Format::new(1).unwrap();
+            b.point_format.extra_bytes = 4;
+            if named {
+                let mut d = vec![0u8; 192];
+                d[2] = 9; // float
+                d[4..13].copy_from_slice(b"amplitude");
+                b.vlrs.push(::las::Vlr {
+                    user_id: "LASF_Spec".into(),
+                    record_id: 4,
+                    description: "extra bytes".into(),
+                    data: d,
+                });
+            }
+            let mut w = ::las::Writer::from_path(&p, b.into_header().unwrap()).unwrap();
+            for i in 0..10u8 {
+                w.write_point(::las::Point {
+                    x: f64::from(i),
+                    y: 1.0,
+                    z: 2.0,
+                    gps_time: Some(0.0),
+                    extra_bytes: vec![i; 4],
+                    ..Default::default()
+                })
+                .unwrap();
+            }
+            w.close().unwrap();
+            drop(w);
+            let (ps, note) = read(&p, None).unwrap();
+            assert_eq!(ps.len(), 10);
+            let note = note.expect("a note");
+            let want = if named {
+                "extra-bytes attribute amplitude (4 bytes per point)"
+            } else {
+                "4 extra bytes per point"
+            };
+            assert!(note.contains(want), "{note}");
+        }
     }
 
     #[test]
