@@ -120,7 +120,9 @@ pub struct Georef {
     /// Model coordinates (x = east, y = north) of the upper-left *corner* of pixel (0, 0)
     /// for [`RasterType::Area`], of its *centre* for [`RasterType::Point`].
     pub origin: [f64; 2],
-    /// Pixel size along x (to the east) and y (to the south), positive for north-up rasters.
+    /// Pixel size along x (to the east) and y (to the south), positive for north-up rasters;
+    /// y is negative for a south-up raster (row 0 at the south, as NetCDF/GRIB conversions
+    /// give): GeoTIFF writes it as a ModelTransformation, ASCII grids and `.hgt` flipped.
     pub pixel_size: [f64; 2],
     /// Whether a pixel is an area or the point at its centre.
     pub raster_type: RasterType,
