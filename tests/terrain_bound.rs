@@ -83,7 +83,17 @@ fn measure(dir: &Path, src: &Hgt, targets: &[f64]) -> Vec<(usize, f64, usize)> {
     }
     assert!(!tiles.is_empty(), "no tile json in {}", dir.display());
     for f in tiles {
-        let zoom: usize = f.parent().unwrap().parent().unwrap().file_name().unwrap().to_str().unwrap().parse().unwrap();
+        let zoom: usize = f
+            .parent()
+            .unwrap()
+            .parent()
+            .unwrap()
+            .file_name()
+            .unwrap()
+            .to_str()
+            .unwrap()
+            .parse()
+            .unwrap();
         let j: serde_json::Value = serde_json::from_slice(&std::fs::read(&f).unwrap()).unwrap();
         let g = |k: &str| j[k].as_f64().unwrap();
         let (w, s, e, n) = (g("west"), g("south"), g("east"), g("north"));
@@ -113,8 +123,11 @@ fn measure(dir: &Path, src: &Hgt, targets: &[f64]) -> Vec<(usize, f64, usize)> {
         let cw = c_hi - c_lo + 1;
         let mut err = vec![f64::NAN; cw * (r_hi - r_lo + 1)];
         for t in j["triangles"].as_array().unwrap() {
-            let p: Vec<[f64; 3]> = (0..3).map(|k| verts[t[k].as_u64().unwrap() as usize]).collect();
-            let det = (p[1][0] - p[0][0]) * (p[2][1] - p[0][1]) - (p[2][0] - p[0][0]) * (p[1][1] - p[0][1]);
+            let p: Vec<[f64; 3]> = (0..3)
+                .map(|k| verts[t[k].as_u64().unwrap() as usize])
+                .collect();
+            let det = (p[1][0] - p[0][0]) * (p[2][1] - p[0][1])
+                - (p[2][0] - p[0][0]) * (p[1][1] - p[0][1]);
             let umin = p.iter().map(|q| q[0]).fold(f64::INFINITY, f64::min);
             let umax = p.iter().map(|q| q[0]).fold(f64::NEG_INFINITY, f64::max);
             let vmin = p.iter().map(|q| q[1]).fold(f64::INFINITY, f64::min);
@@ -134,8 +147,12 @@ fn measure(dir: &Path, src: &Hgt, targets: &[f64]) -> Vec<(usize, f64, usize)> {
                         continue;
                     }
                     // Barycentric coordinates; inside with a tolerance of a millionth of a unit.
-                    let l1 = ((x - p[0][0]) * (p[2][1] - p[0][1]) - (p[2][0] - p[0][0]) * (y - p[0][1])) / det;
-                    let l2 = ((p[1][0] - p[0][0]) * (y - p[0][1]) - (x - p[0][0]) * (p[1][1] - p[0][1])) / det;
+                    let l1 = ((x - p[0][0]) * (p[2][1] - p[0][1])
+                        - (p[2][0] - p[0][0]) * (y - p[0][1]))
+                        / det;
+                    let l2 = ((p[1][0] - p[0][0]) * (y - p[0][1])
+                        - (x - p[0][0]) * (p[1][1] - p[0][1]))
+                        / det;
                     let l0 = 1.0 - l1 - l2;
                     if l0 < -1e-9 || l1 < -1e-9 || l2 < -1e-9 {
                         continue;
@@ -155,7 +172,11 @@ fn measure(dir: &Path, src: &Hgt, targets: &[f64]) -> Vec<(usize, f64, usize)> {
                     continue;
                 }
                 let e = err[(r - r_lo) * cw + c - c_lo];
-                assert!(!e.is_nan(), "{}: post ({c}, {r}) lies in no triangle", f.display());
+                assert!(
+                    !e.is_nan(),
+                    "{}: post ({c}, {r}) lies in no triangle",
+                    f.display()
+                );
                 let o = &mut out[zoom];
                 o.0 += 1;
                 o.1 = o.1.max(e);
@@ -185,20 +206,33 @@ fn tiles_hold_the_bound(name: &str, src: &Hgt, max_error: &str) {
     assert!(o.status.success(), "{name}: {}", stderr(&o));
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let levels = j["levels"].as_array().unwrap();
-    let targets: Vec<f64> = levels.iter().map(|l| l["target"].as_f64().unwrap()).collect();
+    let targets: Vec<f64> = levels
+        .iter()
+        .map(|l| l["target"].as_f64().unwrap())
+        .collect();
     assert_eq!(targets.last(), Some(&max_error.parse::<f64>().unwrap()));
     let ours = measure(&out, src, &targets);
     let mut lines = BTreeMap::new();
     for (z, l) in levels.iter().enumerate() {
         let (n, max, over) = ours[z];
-        lines.insert(z, format!("zoom {z}: {n} samples, max error {max:.4} (vtz: {}), {over} over {}", l["max_error"], targets[z]));
+        lines.insert(
+            z,
+            format!(
+                "zoom {z}: {n} samples, max error {max:.4} (vtz: {}), {over} over {}",
+                l["max_error"], targets[z]
+            ),
+        );
         assert!(n > 0);
         // vtz's own figure is the one measured here (it measures the same posts).
         assert!(
             (l["max_error"].as_f64().unwrap() - max).abs() <= 1e-6 * max.max(1.0),
             "{name}: {lines:#?}"
         );
-        assert_eq!(l["samples"].as_u64().unwrap() as usize, n, "{name}: zoom {z}");
+        assert_eq!(
+            l["samples"].as_u64().unwrap() as usize,
+            n,
+            "{name}: zoom {z}"
+        );
     }
     for (z, &(_, max, over)) in ours.iter().enumerate() {
         assert!(over == 0 && max <= targets[z], "{name}: {lines:#?}");
@@ -252,14 +286,26 @@ fn a_zoom_that_cannot_meet_its_bound_fails_and_the_summary_states_what_held() {
     );
     // A pyramid that holds: the summary's max error is the finest zoom's measured one.
     let hgt = Hgt::kauai(4, |v| v + 4000).write(&d, "in");
-    let o = vtz(["tiles", &hgt, "-o", out.to_str().unwrap(), "--max-error", "1"]);
+    let o = vtz([
+        "tiles",
+        &hgt,
+        "-o",
+        out.to_str().unwrap(),
+        "--max-error",
+        "1",
+    ]);
     let e = stderr(&o);
     assert!(o.status.success(), "{e}");
     let last = e.trim().lines().last().unwrap();
     let finest = e.trim().lines().rev().nth(1).unwrap();
     let measured = |s: &str| -> f64 {
         let i = s.find("max error ").unwrap() + "max error ".len();
-        s[i..].split([',', ' ', ')']).next().unwrap().parse().unwrap()
+        s[i..]
+            .split([',', ' ', ')'])
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
     };
     assert!(last.contains("every sample within its zoom's bound"), "{e}");
     assert_eq!(measured(last), measured(finest), "{e}");

@@ -383,9 +383,17 @@ fn edge(
     let mut cross: Vec<(f64, f64)> = Vec::new();
     let u = unit(z);
     let (along_lo, along_hi, on_land) = if vertical {
-        (land.south, land.north, (land.west..=land.east).contains(&(fixed as i64)))
+        (
+            land.south,
+            land.north,
+            (land.west..=land.east).contains(&(fixed as i64)),
+        )
     } else {
-        (land.west, land.east, (land.south..=land.north).contains(&(fixed as i64)))
+        (
+            land.west,
+            land.east,
+            (land.south..=land.north).contains(&(fixed as i64)),
+        )
     };
     if on_land {
         if vertical {
@@ -609,11 +617,7 @@ pub fn build_tile(
             }
         }
         for (gx, gy, sea) in ring {
-            let h = if sea {
-                0.0
-            } else {
-                land.height(grid, gx, gy)
-            };
+            let h = if sea { 0.0 } else { land.height(grid, gx, gy) };
             add(
                 &mut verts,
                 V {
@@ -693,7 +697,10 @@ pub fn build_tile(
         }
         if inserted == 0 || round >= MAX_ROUNDS {
             if std::env::var_os("VTZ_DEBUG_TERRAIN").is_some() && over > 0 {
-                eprintln!("tile {z}/{}/{}: round {round}, inserted {inserted}, over {over}", key.x, key.y);
+                eprintln!(
+                    "tile {z}/{}/{}: round {round}, inserted {inserted}, over {over}",
+                    key.x, key.y
+                );
             }
             stats.over = over;
             break;
@@ -704,7 +711,11 @@ pub fn build_tile(
         let (n, max, ss, over) = measure(grid, &tri, &id_of, &verts, hs, rect, u, rg, p.target);
         let (c_lo, c_hi, r_lo, r_hi) = rg;
         let valid = (r_lo..=r_hi)
-            .map(|r| (c_lo..=c_hi).filter(|&c| grid.valid(r * grid.width + c)).count())
+            .map(|r| {
+                (c_lo..=c_hi)
+                    .filter(|&c| grid.valid(r * grid.width + c))
+                    .count()
+            })
             .sum::<usize>();
         if n != valid {
             return Err(Error::unmet(format!(
