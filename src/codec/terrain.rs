@@ -60,7 +60,8 @@ pub struct TerrainLevel {
     pub tiles: usize,
     /// Cesium's geometric error of the level (metres).
     pub geometric_error: f64,
-    /// The bound every raster sample meets at this level.
+    /// The bound every raster sample meets at this level (checked: a level that misses it
+    /// fails the whole pyramid).
     pub target: f64,
     /// Greedy sites in the level's prefix.
     pub sites: usize,
@@ -72,12 +73,13 @@ pub struct TerrainLevel {
     pub added: usize,
     /// Valid samples measured (a sample on a tile edge counts in each tile).
     pub samples: usize,
-    /// Largest |mesh − sample| (decoded heights).
+    /// Largest |mesh − sample| over every valid sample in the level's tiles, measured on the
+    /// mesh a decoder reconstructs (quantized positions and height codes, edges included).
     pub max_error: f64,
     /// Root mean square error.
     pub rmse: f64,
-    /// Samples above the target that no vertex could fix (their quantized position was
-    /// taken); 0 unless the level is far coarser than the raster.
+    /// Samples farther than the target from the decoded mesh: always 0 in a written pyramid
+    /// ([`write_terrain`] fails with [`Error::Unmet`] instead).
     pub over: usize,
     /// Bytes of the level's tiles.
     pub bytes: u64,
@@ -206,6 +208,10 @@ pub fn default_max_zoom(r: &Raster) -> Result<u8> {
 /// Write the pyramid of `raster` into `dir` (`layer.json`, `{z}/{x}/{y}.terrain`): built in a
 /// temporary directory beside it, renamed at the end. An existing `dir` is replaced only
 /// with `force` and only when it holds a `layer.json` (a previous pyramid).
+///
+/// Every valid sample of every zoom is measured against the mesh a decoder reconstructs
+/// (quantized positions and heights, tile edges and the raster's border included); a zoom
+/// where one is farther than its bound fails with [`Error::Unmet`] and nothing is written.
 pub fn write_terrain(
     raster: &Raster,
     req: &TerrainRequest,
@@ -390,6 +396,15 @@ pub fn write_terrain(
             } else {
                 0.0
             };
+            if level.over > 0 || level.max_error > target {
+                // Measured on the decoded tiles: never write a pyramid that breaks its bound.
+                return Err(Error::unmet(format!(
+                    "zoom {z}: {} of {} samples are farther than the bound {target} from the \
+                     decoded mesh (max error {:.3}); its quantized positions are too coarse for \
+                     this raster: use a larger --max-error or a deeper --max-zoom",
+                    level.over, level.samples, level.max_error
+                )));
+            }
             report.levels.push(level);
         }
         let layer = layer_json(dir, &report, &zooms, req);
@@ -486,6 +501,7 @@ fn layer_json(
             "levels": report.levels.iter().map(|l| serde_json::json!({
                 "zoom": l.zoom, "target": l.target, "geometric_error": l.geometric_error,
                 "max_error": l.max_error, "rmse": l.rmse, "vertices": l.vertices,
+                "samples": l.samples, "over": l.over,
             })).collect::<Vec<_>>(),
         },
     });

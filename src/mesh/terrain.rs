@@ -91,13 +91,18 @@ impl GeoGrid<'_> {
     /// within half a sample outside the centres, the border samples (their pixels' area);
     /// 0 (sea level) farther out or where all four are nodata.
     pub fn height_at(&self, lon: f64, lat: f64) -> f64 {
+        if self.outside(lon, lat) {
+            return 0.0;
+        }
+        self.height_clamped(lon, lat)
+    }
+
+    /// Bilinear height at a point with the point clamped onto the sample centres (outside
+    /// them, the nearest border samples'); 0 where all four are nodata.
+    fn height_clamped(&self, lon: f64, lat: f64) -> f64 {
         let fc = (lon - self.lon0) / self.dlon;
         let fr = (self.lat0 - lat) / self.dlat;
-        if !(fc >= -0.5
-            && fr >= -0.5
-            && fc <= (self.width - 1) as f64 + 0.5
-            && fr <= (self.height - 1) as f64 + 0.5)
-        {
+        if !(fc.is_finite() && fr.is_finite()) {
             return 0.0;
         }
         let fc = fc.clamp(0.0, (self.width - 1) as f64);
@@ -178,6 +183,71 @@ impl GeoGrid<'_> {
     /// Degrees per sample, the larger of the two directions.
     pub fn spacing(&self) -> f64 {
         self.dlon.max(self.dlat)
+    }
+}
+
+/// Where the raster's surface ends at one zoom, in global quantized coordinates: the
+/// outermost positions that carry the raster's border heights (`west..=east`,
+/// `south..=north`); the next position outward is sea level, so the data ends in a cliff one
+/// quantized unit wide. Each border position is the outermost one within half a sample of
+/// the outer sample centres (the border pixels' area), or the first one beyond those centres
+/// when half a sample holds no position, so every sample lies on or inside it and no sample
+/// is ever measured against the cliff's slope. A function of the raster and the zoom alone,
+/// so every tile agrees on it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Land {
+    /// Zoom.
+    pub z: u8,
+    /// Westernmost global `gx` with the raster's heights.
+    pub west: i64,
+    /// Easternmost global `gx` with the raster's heights.
+    pub east: i64,
+    /// Southernmost global `gy` with the raster's heights.
+    pub south: i64,
+    /// Northernmost global `gy` with the raster's heights.
+    pub north: i64,
+}
+
+impl Land {
+    /// The raster's extent at zoom `z`.
+    pub fn of(grid: &GeoGrid, z: u8) -> Land {
+        let u = unit(z);
+        // A coordinate within a millionth of a unit of a position is that position (sample
+        // centres on tile edges, e.g. whole degrees, must not fall a unit either side).
+        let snap = |x: f64| {
+            if (x - x.round()).abs() < 1e-6 {
+                x.round()
+            } else {
+                x
+            }
+        };
+        let [w, s, e, n] = grid.extent();
+        let (bx, by) = (grid.dlon / 2.0 / u, grid.dlat / 2.0 / u);
+        let (sw, se) = ((w + 180.0) / u, (e + 180.0) / u);
+        let (ss, sn) = ((s + 90.0) / u, (n + 90.0) / u);
+        Land {
+            z,
+            west: snap(sw - bx).ceil().min(snap(sw).floor()) as i64,
+            east: snap(se + bx).floor().max(snap(se).ceil()) as i64,
+            south: snap(ss - by).ceil().min(snap(ss).floor()) as i64,
+            north: snap(sn + by).floor().max(snap(sn).ceil()) as i64,
+        }
+    }
+
+    /// Whether global position `(gx, gy)` carries the raster's heights (else sea level).
+    pub fn contains(&self, gx: i64, gy: i64) -> bool {
+        (self.west..=self.east).contains(&gx) && (self.south..=self.north).contains(&gy)
+    }
+
+    /// The height of the surface the tiles approximate at global position `(gx, gy)`: the
+    /// raster's bilinear height (clamped onto its border samples up to the border
+    /// positions), sea level (0) beyond them.
+    pub fn height(&self, grid: &GeoGrid, gx: i64, gy: i64) -> f64 {
+        if !self.contains(gx, gy) {
+            return 0.0;
+        }
+        let u = unit(self.z);
+        grid.height_clamped(-180.0 + gx as f64 * u, -90.0 + gy as f64 * u)
     }
 }
 
@@ -281,71 +351,97 @@ struct V {
 }
 
 /// The vertices of one tile edge: positions along it (0..=32767) and height codes, the
-/// profile simplified (Douglas–Peucker) until the raster samples it crosses are within
-/// `target`. A function of the edge alone, so both tiles sharing it get the same vertices.
-/// `vertical`: an edge at fixed global `gx = fixed` from `gy = start`; otherwise at fixed
-/// `gy = fixed` from `gx = start`.
+/// profile simplified (Douglas–Peucker) until the raster samples it crosses, and the
+/// raster's border where it crosses it, are within `target`. A function of the edge alone,
+/// so both tiles sharing it get the same vertices. `vertical`: an edge at fixed global
+/// `gx = fixed` from `gy = start`; otherwise at fixed `gy = fixed` from `gx = start`.
+#[allow(clippy::too_many_arguments)]
 fn edge(
     grid: &GeoGrid,
-    z: u8,
+    land: &Land,
     fixed: u64,
     start: u64,
     vertical: bool,
     target: f64,
     hs: &Heights,
 ) -> Vec<(u16, u16)> {
-    let point = |k: u64| {
+    let z = land.z;
+    let at = |k: u64| -> (i64, i64) {
         if vertical {
-            (lon(z, fixed), lat(z, start + k))
+            (fixed as i64, (start + k) as i64)
         } else {
-            (lon(z, start + k), lat(z, fixed))
+            ((start + k) as i64, fixed as i64)
         }
     };
     let code_at = |k: u64| {
-        let (lo, la) = point(k);
-        hs.code(grid.height_at(lo, la))
+        let (gx, gy) = at(k);
+        hs.code(land.height(grid, gx, gy))
     };
     // Where the edge crosses sample rows (vertical) or columns: position t in units and the
-    // raster's height there, if the crossing has valid data.
+    // raster's height there, if the crossing has valid data. An edge between the outer
+    // sample centres and the raster's border positions runs along the border samples.
     let mut cross: Vec<(f64, f64)> = Vec::new();
     let u = unit(z);
-    let (a, b) = (point(0), point(Q));
-    if vertical {
-        let l = a.0;
-        let fc = (l - grid.lon0) / grid.dlon;
-        if fc >= -1e-9 && fc <= (grid.width - 1) as f64 + 1e-9 {
-            if let Some((_, _, r_lo, r_hi)) = grid.samples_in([grid.lon0, a.1, grid.lon0, b.1]) {
+    let (along_lo, along_hi, on_land) = if vertical {
+        (
+            land.south,
+            land.north,
+            (land.west..=land.east).contains(&(fixed as i64)),
+        )
+    } else {
+        (
+            land.west,
+            land.east,
+            (land.south..=land.north).contains(&(fixed as i64)),
+        )
+    };
+    if on_land {
+        if vertical {
+            let l = lon(z, fixed);
+            let fc = ((l - grid.lon0) / grid.dlon).clamp(0.0, (grid.width - 1) as f64);
+            let (a, b) = (lat(z, start), lat(z, start + Q));
+            if let Some((_, _, r_lo, r_hi)) = grid.samples_in([grid.lon0, a, grid.lon0, b]) {
                 for r in r_lo..=r_hi {
                     let la = grid.row_lat(r);
                     if has_data(grid, fc, r as f64) {
-                        cross.push(((la - a.1) / u, grid.height_at(l, la)));
+                        cross.push(((la - a) / u, grid.height_clamped(l, la)));
+                    }
+                }
+            }
+        } else {
+            let la = lat(z, fixed);
+            let fr = ((grid.lat0 - la) / grid.dlat).clamp(0.0, (grid.height - 1) as f64);
+            let (a, b) = (lon(z, start), lon(z, start + Q));
+            if let Some((c_lo, c_hi, _, _)) = grid.samples_in([a, grid.lat0, b, grid.lat0]) {
+                for c in c_lo..=c_hi {
+                    let lo = grid.col_lon(c);
+                    if has_data(grid, c as f64, fr) {
+                        cross.push(((lo - a) / u, grid.height_clamped(lo, la)));
                     }
                 }
             }
         }
-    } else {
-        let la = a.1;
-        let fr = (grid.lat0 - la) / grid.dlat;
-        if fr >= -1e-9 && fr <= (grid.height - 1) as f64 + 1e-9 {
-            if let Some((c_lo, c_hi, _, _)) = grid.samples_in([a.0, grid.lat0, b.0, grid.lat0]) {
-                for c in c_lo..=c_hi {
-                    let lo = grid.col_lon(c);
-                    if has_data(grid, c as f64, fr) {
-                        cross.push(((lo - a.0) / u, grid.height_at(lo, la)));
-                    }
+        // The cliff where the edge leaves the raster: its last position with the border's
+        // height, and sea level one unit beyond.
+        for (g, out) in [(along_lo, along_lo - 1), (along_hi, along_hi + 1)] {
+            for p in [g, out] {
+                let k = p - start as i64;
+                if (0..=Q as i64).contains(&k) {
+                    let (gx, gy) = at(k as u64);
+                    cross.push((k as f64, land.height(grid, gx, gy)));
                 }
             }
         }
     }
-    // Beyond the raster (more than half a sample out) the surface is sea level: points there,
-    // a sample apart (at most 256 per edge), keep the edge at 0 up to the data, so the
-    // raster's border is a cliff, not a slope across the tile.
+    // Beyond the raster the surface is sea level: points there, a sample apart (at most 256
+    // per edge), keep the edge at 0 up to the data, so the raster's border is a cliff, not
+    // a slope across the tile.
     let step = (grid.spacing() / u).max(Q as f64 / 256.0);
     let mut t = 0.0;
     while t <= Q as f64 {
         let k = t.round() as u64;
-        let (lo, la) = point(k);
-        if grid.outside(lo, la) {
+        let (gx, gy) = at(k);
+        if !land.contains(gx, gy) {
             cross.push((k as f64, 0.0));
         }
         t += step;
@@ -387,6 +483,21 @@ fn edge(
     out.into_iter().map(|(k, c)| (k as u16, c)).collect()
 }
 
+/// The corners of the unit cell holding tile position `(su, sv)` that are interior
+/// positions (1..=32766 on both axes), without repeats.
+fn cell_corners(su: f64, sv: f64) -> Vec<(u16, u16)> {
+    let mut out: Vec<(u16, u16)> = Vec::with_capacity(4);
+    for a in [su.floor(), su.ceil()] {
+        for b in [sv.floor(), sv.ceil()] {
+            let inside = |k: f64| k >= 1.0 && k <= (Q - 1) as f64;
+            if inside(a) && inside(b) && !out.contains(&(a as u16, b as u16)) {
+                out.push((a as u16, b as u16));
+            }
+        }
+    }
+    out
+}
+
 /// Whether the bilinear cell at fractional (col, row) has a valid sample (on the grid).
 fn has_data(grid: &GeoGrid, fc: f64, fr: f64) -> bool {
     let c0 = fc.max(0.0).floor() as usize;
@@ -408,6 +519,7 @@ pub fn build_tile(
     let z = key.z;
     let (gx0, gy0) = (key.x as u64 * Q, key.y as u64 * Q);
     let hs = &p.heights;
+    let land = Land::of(grid, z);
     let mut verts: Vec<V> = Vec::new();
     let mut at: HashMap<(u16, u16), u32> = HashMap::new();
     let mut add = |verts: &mut Vec<V>, v: V| -> bool {
@@ -418,10 +530,10 @@ pub fn build_tile(
         verts.push(v);
         true
     };
-    for (k, h) in edge(grid, z, gx0, gy0, true, p.target, hs) {
+    for (k, h) in edge(grid, &land, gx0, gy0, true, p.target, hs) {
         add(&mut verts, V { u: 0, v: k, h });
     }
-    for (k, h) in edge(grid, z, gx0 + Q, gy0, true, p.target, hs) {
+    for (k, h) in edge(grid, &land, gx0 + Q, gy0, true, p.target, hs) {
         add(
             &mut verts,
             V {
@@ -431,10 +543,10 @@ pub fn build_tile(
             },
         );
     }
-    for (k, h) in edge(grid, z, gy0, gx0, false, p.target, hs) {
+    for (k, h) in edge(grid, &land, gy0, gx0, false, p.target, hs) {
         add(&mut verts, V { u: k, v: 0, h });
     }
-    for (k, h) in edge(grid, z, gy0 + Q, gx0, false, p.target, hs) {
+    for (k, h) in edge(grid, &land, gy0 + Q, gx0, false, p.target, hs) {
         add(
             &mut verts,
             V {
@@ -467,60 +579,53 @@ pub fn build_tile(
             }
         }
     }
-    // The raster's outline (half a sample beyond its outer sample centres) inside the tile,
-    // at sea level, a sample apart (at most 256 per tile side): the data ends in a cliff.
+    // The raster's border inside the tile: its last positions with the border samples'
+    // heights and, one unit beyond, sea level, a sample apart (at most 256 per tile side):
+    // the data ends in a cliff one unit wide that no sample lies on.
     {
-        let [ow, os, oe, on] = grid.extent();
-        let (hx, hy) = (grid.dlon / 2.0, grid.dlat / 2.0);
-        let (ow, os, oe, on) = (ow - hx, os - hy, oe + hx, on + hy);
         let step = (grid.spacing() / u).max(Q as f64 / 256.0);
-        // The first quantized position strictly beyond `x` (outward `dir`), if interior.
-        let beyond = |x: f64, origin: f64, dir: f64| -> Option<u16> {
-            let t = (x - origin) / u;
-            let k = if dir > 0.0 {
-                t.floor() + 1.0
-            } else {
-                t.ceil() - 1.0
-            };
-            (k >= 1.0 && k <= (Q - 1) as f64).then_some(k as u16)
-        };
-        let span = |lo: f64, hi: f64, origin: f64| -> Vec<u16> {
-            let a = ((lo - origin) / u).max(1.0);
-            let b = ((hi - origin) / u).min((Q - 1) as f64);
+        let (x0, y0) = (gx0 as i64, gy0 as i64);
+        let interior = |g: i64, o: i64| (1..Q as i64).contains(&(g - o));
+        // Global positions lo..=hi along a side, clipped to the tile's interior, a step
+        // apart, both ends included.
+        let span = |lo: i64, hi: i64, o: i64| -> Vec<i64> {
+            let (a, b) = (lo.max(o + 1), hi.min(o + Q as i64 - 1));
             let mut out = Vec::new();
-            let mut t = a;
-            while t <= b {
-                out.push(t.round() as u16);
+            let mut t = a as f64;
+            while t < b as f64 {
+                out.push(t.round() as i64);
                 t += step;
             }
             if a <= b {
-                out.push(b.round() as u16);
+                out.push(b);
             }
             out
         };
-        let mut outline: Vec<(u16, u16)> = Vec::new();
-        for (x, dir) in [(ow, -1.0), (oe, 1.0)] {
-            if let Some(a) = beyond(x, rect[0], dir) {
-                outline.extend(span(os - hy, on + hy, rect[1]).into_iter().map(|b| (a, b)));
+        let mut ring: Vec<(i64, i64, bool)> = Vec::new();
+        for (d, sea) in [(0i64, false), (1, true)] {
+            let (w, e) = (land.west - d, land.east + d);
+            let (s, n) = (land.south - d, land.north + d);
+            for gx in [w, e] {
+                if interior(gx, x0) {
+                    ring.extend(span(s, n, y0).into_iter().map(|gy| (gx, gy, sea)));
+                }
+            }
+            for gy in [s, n] {
+                if interior(gy, y0) {
+                    ring.extend(span(w, e, x0).into_iter().map(|gx| (gx, gy, sea)));
+                }
             }
         }
-        for (y, dir) in [(os, -1.0), (on, 1.0)] {
-            if let Some(b) = beyond(y, rect[1], dir) {
-                outline.extend(span(ow - hx, oe + hx, rect[0]).into_iter().map(|a| (a, b)));
-            }
-        }
-        for (a, b) in outline {
-            let (lo, la) = (lon(z, gx0 + a as u64), lat(z, gy0 + b as u64));
-            if grid.outside(lo, la) {
-                add(
-                    &mut verts,
-                    V {
-                        u: a,
-                        v: b,
-                        h: hs.code(0.0),
-                    },
-                );
-            }
+        for (gx, gy, sea) in ring {
+            let h = if sea { 0.0 } else { land.height(grid, gx, gy) };
+            add(
+                &mut verts,
+                V {
+                    u: (gx - x0) as u16,
+                    v: (gy - y0) as u16,
+                    h: hs.code(h),
+                },
+            );
         }
     }
     let range = grid.samples_in(rect);
@@ -553,28 +658,73 @@ pub fn build_tile(
             let (su, sv) = pos(c, r);
             let a = (su.round().clamp(1.0, (Q - 1) as f64)) as u16;
             let b = (sv.round().clamp(1.0, (Q - 1) as f64)) as u16;
+            let value = hs.code(grid.data[r * grid.width + c]);
             let v = V {
                 u: a,
                 v: b,
-                h: hs.code(grid.data[r * grid.width + c]),
+                h: value,
             };
             if add(&mut verts, v) {
                 tri.insert_near([a as i64, b as i64], None)?;
                 id_of.push((verts.len() - 1) as u32);
                 inserted += 1;
                 stats.added += 1;
-            } else {
+                continue;
+            }
+            // Its position is taken: the mesh there is off by the rounding of its position
+            // (a peak, a pit or a cliff beside it). The free interior corners of the unit
+            // cell around it get its value, so the mesh is flat at its value around it (no
+            // other sample lies in that cell unless the zoom's quantized positions are
+            // coarser than the raster's posts).
+            let mut pinned = false;
+            for (a, b) in cell_corners(su, sv) {
+                let v = V {
+                    u: a,
+                    v: b,
+                    h: value,
+                };
+                if add(&mut verts, v) {
+                    tri.insert_near([a as i64, b as i64], None)?;
+                    id_of.push((verts.len() - 1) as u32);
+                    inserted += 1;
+                    stats.added += 1;
+                    pinned = true;
+                }
+            }
+            if !pinned {
                 over += 1;
             }
         }
         if inserted == 0 || round >= MAX_ROUNDS {
+            if std::env::var_os("VTZ_DEBUG_TERRAIN").is_some() && over > 0 {
+                eprintln!(
+                    "tile {z}/{}/{}: round {round}, inserted {inserted}, over {over}",
+                    key.x, key.y
+                );
+            }
             stats.over = over;
             break;
         }
     }
-    // Final measurement: each sample once.
+    // Final measurement: each sample once, every valid sample of the tile.
     if let Some(rg) = range {
         let (n, max, ss, over) = measure(grid, &tri, &id_of, &verts, hs, rect, u, rg, p.target);
+        let (c_lo, c_hi, r_lo, r_hi) = rg;
+        let valid = (r_lo..=r_hi)
+            .map(|r| {
+                (c_lo..=c_hi)
+                    .filter(|&c| grid.valid(r * grid.width + c))
+                    .count()
+            })
+            .sum::<usize>();
+        if n != valid {
+            return Err(Error::unmet(format!(
+                "terrain tile {z}/{}/{}: {} of its {valid} samples lie in no triangle",
+                key.x,
+                key.y,
+                valid - n
+            )));
+        }
         stats.samples = n;
         stats.max_error = max;
         stats.sum_sq = ss;
@@ -989,6 +1139,57 @@ mod tests {
         assert_eq!(na, nb);
         // And the tile encodes.
         assert!(a.0.encode().unwrap().len() > 88);
+    }
+
+    #[test]
+    fn the_bound_holds_at_a_raster_border_far_from_sea_level() {
+        // 3″ posts (155 quantized units at zoom 10) 4000 m above or below the sea level
+        // outside the raster: its border is a 4 km cliff beside the outer posts. Borders
+        // inside the tile, a row 0.3 units inside the tile's south edge, a column on the
+        // tile's west edge, a column 0.4 units inside it.
+        let (w, h) = (121, 121);
+        let key = TileKey {
+            z: 10,
+            x: 1200,
+            y: 600,
+        };
+        let rect = key.rect();
+        let u = unit(key.z);
+        let d = 1.0 / 1200.0;
+        for offset in [4000.0, -4000.0] {
+            let data: Vec<f64> = bumpy(w, h).iter().map(|v| 0.5 * v + offset).collect();
+            let lo = data.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = data.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            for (lon0, south) in [
+                (rect[0] + 10.37 * d, rect[1] + 0.3 * u),
+                (rect[0], rect[1] + 7.61 * d),
+                (rect[0] + 0.4 * u, rect[1] + 5.0 * d + 0.6 * u),
+            ] {
+                let g = GeoGrid {
+                    width: w,
+                    height: h,
+                    data: &data,
+                    mask: None,
+                    lon0,
+                    lat0: south + (h - 1) as f64 * d,
+                    dlon: d,
+                    dlat: d,
+                };
+                let p = TileParams {
+                    target: 1.0,
+                    heights: Heights::covering(lo, hi),
+                    seeds: &[],
+                    normals: false,
+                    water: None,
+                };
+                let (_, s) = build_tile(&g, key, &p).unwrap();
+                assert_eq!(s.samples, w * h, "every post lies in the tile");
+                assert!(
+                    s.max_error <= 1.0 && s.over == 0,
+                    "offset {offset}, west {lon0}, south {south}: {s:?}"
+                );
+            }
+        }
     }
 
     #[test]

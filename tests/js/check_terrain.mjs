@@ -1,7 +1,7 @@
 // Checks a directory of Cesium quantized-mesh-1.0 terrain tiles (as `vtz tiles` writes them)
 // with an independent decoder, HERE's @here/quantized-mesh-decoder from npm:
 //
-//   node check_terrain.mjs [--require-json] DIR
+//   node check_terrain.mjs [--require-json] [--source FILE.hgt [--max-error E]] DIR
 //
 // DIR holds layer.json and {z}/{x}/{y}.terrain (gzipped or not). For every tile that
 // layer.json's `available` ranges list it checks that the file exists and decodes, and:
@@ -23,6 +23,15 @@
 // - neighbours at the same zoom (x ± 1 with the wrap at the antimeridian, y ± 1): the shared
 //   edge has the same vertices, at the same positions along it and the same heights in metres
 //   (min + h / 32767 × (max − min), within 1e-6 of the larger |height| or 1 m).
+// - with --source FILE.hgt (an SRTM .hgt tile, placed by its file name: N22W160.hgt is
+//   the square degree from 160° W, 22° N; posts at its corners and every 1/(side − 1)°;
+//   -32768 void), every valid post inside each tile (its edges included) is located in the
+//   decoded triangles (a post in none fails) and its height compared with the mesh's there
+//   (barycentric in u, v of Cesium's decoded heights, lerp(min, max, h / 32767)); per zoom,
+//   every post must be within the zoom's bound: --max-error E at the finest zoom and
+//   max(E, Cesium's geometric error of the zoom) above it, or, without --max-error, the
+//   `target` layer.json's `vtz.levels` states. layer.json's own `max_error` per zoom must
+//   not be below the error measured here.
 // It also fails on a .terrain file that layer.json does not list.
 // Prints one summary line; exits 1 on any failure (each printed with its tile), 2 on bad usage.
 import { readFileSync, readdirSync, existsSync, statSync } from 'node:fs';
@@ -38,11 +47,21 @@ const REL_TOL = 1e-6;
 // WGS84 as Cesium has it (Ellipsoid.WGS84).
 const RADII = [6378137.0, 6378137.0, 6356752.3142451793];
 
+const USAGE = 'usage: node check_terrain.mjs [--require-json] [--source FILE.hgt [--max-error E]] DIR';
 const args = process.argv.slice(2);
-const requireJson = args.includes('--require-json');
-const rest = args.filter((a) => a !== '--require-json');
-if (rest.length !== 1 || rest[0].startsWith('-')) {
-  console.error('usage: node check_terrain.mjs [--require-json] DIR');
+let requireJson = false;
+let sourcePath = null;
+let maxError = null;
+const rest = [];
+for (let i = 0; i < args.length; i++) {
+  if (args[i] === '--require-json') requireJson = true;
+  else if (args[i] === '--source' && i + 1 < args.length) sourcePath = args[++i];
+  else if (args[i] === '--max-error' && i + 1 < args.length) maxError = Number(args[++i]);
+  else rest.push(args[i]);
+}
+if (rest.length !== 1 || rest[0].startsWith('-') || (maxError !== null && !(maxError >= 0)) ||
+    (maxError !== null && sourcePath === null)) {
+  console.error(USAGE);
   process.exit(2);
 }
 const dir = rest[0];
@@ -78,6 +97,108 @@ const wantWater = extensions.includes('watermask');
 if (failures.length) {
   for (const f of failures) console.error(`FAIL ${f}`);
   process.exit(1);
+}
+
+// ---- the source raster (--source)
+let source = null;
+if (sourcePath !== null) {
+  const m = /([NS])(\d{2})([EW])(\d{3})[^\/]*\.hgt$/i.exec(sourcePath);
+  let raw;
+  try {
+    raw = readFileSync(sourcePath);
+  } catch (e) {
+    console.error(`check_terrain: --source ${sourcePath}: ${e.message}`);
+    process.exit(2);
+  }
+  const side = Math.round(Math.sqrt(raw.length / 2));
+  if (!m || side < 2 || side * side * 2 !== raw.length) {
+    console.error(`check_terrain: --source ${sourcePath}: not an .hgt tile named like N22W160.hgt of side² int16`);
+    process.exit(2);
+  }
+  const posts = new Int16Array(side * side);
+  for (let i = 0; i < side * side; i++) posts[i] = raw.readInt16BE(2 * i);
+  source = {
+    side,
+    posts,
+    west: (m[3].toUpperCase() === 'W' ? -1 : 1) * Number(m[4]),
+    south: (m[1].toUpperCase() === 'S' ? -1 : 1) * Number(m[2]),
+    d: 1 / (side - 1),
+  };
+}
+// Per zoom: posts measured, the largest |mesh − post|, and where.
+const bound = new Map();
+
+// Every valid post of the source inside tile z/x/y, located in its decoded triangles.
+function measureTile(key, z, rect, u, v, hMetres, triangleIndices) {
+  const { side, posts, west, south, d } = source;
+  const north = south + 1;
+  const eps = 1e-9;
+  const c0 = Math.max(0, Math.ceil((rect.west - west) / d - eps));
+  const c1 = Math.min(side - 1, Math.floor((rect.east - west) / d + eps));
+  const r0 = Math.max(0, Math.ceil((north - rect.north) / d - eps));
+  const r1 = Math.min(side - 1, Math.floor((north - rect.south) / d + eps));
+  if (c0 > c1 || r0 > r1) return;
+  const cw = c1 - c0 + 1;
+  const err = new Float64Array(cw * (r1 - r0 + 1)).fill(NaN);
+  // Post positions in tile units (u east, v north).
+  const pu = (c) => ((west + c * d - rect.west) / (rect.east - rect.west)) * Q;
+  const pv = (r) => ((north - r * d - rect.south) / (rect.north - rect.south)) * Q;
+  const tol = 1e-6;
+  for (let t = 0; t < triangleIndices.length; t += 3) {
+    const a = triangleIndices[t];
+    const b = triangleIndices[t + 1];
+    const c = triangleIndices[t + 2];
+    const [ax, ay, bx, by, cx, cy] = [u[a], v[a], u[b], v[b], u[c], v[c]];
+    const det = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay);
+    if (det === 0) continue;
+    const umin = Math.min(ax, bx, cx);
+    const umax = Math.max(ax, bx, cx);
+    const vmin = Math.min(ay, by, cy);
+    const vmax = Math.max(ay, by, cy);
+    // Candidate posts: columns and rows whose positions fall in the triangle's box.
+    const toLon = (x) => rect.west + (x / Q) * (rect.east - rect.west);
+    const toLat = (y) => rect.south + (y / Q) * (rect.north - rect.south);
+    const cc0 = Math.max(c0, Math.ceil((toLon(umin) - west) / d - 1e-6));
+    const cc1 = Math.min(c1, Math.floor((toLon(umax) - west) / d + 1e-6));
+    const rr0 = Math.max(r0, Math.ceil((north - toLat(vmax)) / d - 1e-6));
+    const rr1 = Math.min(r1, Math.floor((north - toLat(vmin)) / d + 1e-6));
+    for (let r = rr0; r <= rr1; r++) {
+      const y = pv(r);
+      for (let col = cc0; col <= cc1; col++) {
+        const h = posts[r * side + col];
+        if (h === -32768) continue;
+        const x = pu(col);
+        const l1 = ((x - ax) * (cy - ay) - (cx - ax) * (y - ay)) / det;
+        const l2 = ((bx - ax) * (y - ay) - (x - ax) * (by - ay)) / det;
+        const l0 = 1 - l1 - l2;
+        if (l0 < -tol || l1 < -tol || l2 < -tol) continue;
+        const e = Math.abs(l0 * hMetres[a] + l1 * hMetres[b] + l2 * hMetres[c] - h);
+        const i = (r - r0) * cw + col - c0;
+        if (Number.isNaN(err[i]) || e > err[i]) err[i] = e;
+      }
+    }
+  }
+  const target = targetOf(z);
+  let s = bound.get(z);
+  if (!s) bound.set(z, (s = { posts: 0, max: 0, at: '', over: 0, target }));
+  let missing = 0;
+  for (let r = r0; r <= r1; r++) {
+    for (let col = c0; col <= c1; col++) {
+      if (posts[r * side + col] === -32768) continue;
+      const e = err[(r - r0) * cw + col - c0];
+      if (Number.isNaN(e)) {
+        if (missing++ === 0) fail(key, `source post (${col}, ${r}) lies in no triangle`);
+        continue;
+      }
+      s.posts++;
+      if (e > s.max) {
+        s.max = e;
+        s.at = `${key} post (${col}, ${r})`;
+      }
+      if (e > target) s.over++;
+    }
+  }
+  if (missing > 1) fail(key, `${missing} source posts lie in no triangle`);
 }
 
 // Listed tiles, key "z/x/y".
@@ -116,6 +237,24 @@ for (const zd of readdirSync(dir)) {
       }
     }
   }
+}
+
+// The bound of zoom z: --max-error at the finest zoom and Cesium's geometric error of the
+// zoom above it (TerrainProvider.getEstimatedLevelZeroGeometricErrorForAHeightmap(WGS84, 65,
+// 2) / 2^z), or what layer.json states.
+const finestZoom = Math.max(-1, ...[...listed.values()].map((t) => t.z));
+const vtzLevels = Array.isArray(layer.vtz?.levels) ? layer.vtz.levels : [];
+function targetOf(z) {
+  if (maxError !== null) {
+    const ge = (RADII[0] * 2 * Math.PI * 0.25) / (65 * 2) / 2 ** z;
+    return z === finestZoom ? maxError : Math.max(maxError, ge);
+  }
+  const l = vtzLevels.find((q) => q.zoom === z);
+  if (!l || !Number.isFinite(l.target)) {
+    fail('layer.json', `no vtz.levels target for zoom ${z}: give --max-error`);
+    return Infinity;
+  }
+  return l.target;
 }
 
 // ---- geometry helpers
@@ -296,6 +435,17 @@ for (const { z, x, y } of sorted) {
     }
   }
 
+  // The source's posts against the mesh, with heights as Cesium decodes them
+  // (CesiumMath.lerp(minimumHeight, maximumHeight, h / 32767)).
+  if (source) {
+    const hc = new Float64Array(n);
+    for (let k = 0; k < n; k++) {
+      const f = h[k] / Q;
+      hc[k] = (1 - f) * minH + f * maxH;
+    }
+    measureTile(key, z, rect, u, v, hc, triangleIndices);
+  }
+
   // Positions: longitude, latitude, height in metres.
   const heightM = (k) => minH + (h[k] / Q) * (maxH - minH);
   const lonOf = (k) => rect.west + (u[k] / Q) * (rect.east - rect.west);
@@ -472,15 +622,34 @@ for (const { z, x, y } of sorted) {
 const orphans = sorted.filter(({ z, x, y }) => z > 0 && !listed.has(`${z - 1}/${x >> 1}/${y >> 1}`));
 if (orphans.length) notes.push(`${orphans.length} tiles whose parent is not listed, e.g. ${orphans[0].z}/${orphans[0].x}/${orphans[0].y}`);
 
+// ---- the bound per zoom (--source)
+const boundLines = [];
+if (source) {
+  if (bound.size === 0) fail(sourcePath, 'no source post lies in any listed tile');
+  for (const [z, s] of [...bound.entries()].sort((a, b) => a[0] - b[0])) {
+    const claimed = vtzLevels.find((q) => q.zoom === z)?.max_error;
+    boundLines.push(`zoom ${z}: ${s.posts} posts, max error ${s.max.toFixed(4)} (${s.at || '-'}), ` +
+      `${s.over} over the bound ${s.target}` + (Number.isFinite(claimed) ? `; layer.json says max error ${claimed.toFixed(4)}` : ''));
+    if (s.over > 0) {
+      fail(`zoom ${z}`, `${s.over} of ${s.posts} source posts farther than the bound ${s.target} from the decoded mesh (max error ${s.max} at ${s.at})`);
+    }
+    if (Number.isFinite(claimed) && claimed < s.max - 1e-6 * Math.max(1, s.max)) {
+      fail(`zoom ${z}`, `layer.json says max error ${claimed}, measured here ${s.max}`);
+    }
+  }
+}
+
 finish();
 
 function finish() {
+  for (const line of boundLines) console.log(`bound: ${line}`);
   for (const note of notes) console.log(`note: ${note}`);
   const zooms = sorted.length ? `zooms ${sorted[0].z}–${sorted[sorted.length - 1].z}` : 'no zooms';
   const summary = `check_terrain ${dir}: ${sorted.length} tiles (${zooms}, ${nGzip} gzipped, ${nJson} with json), ` +
     `${nVertices} vertices, ${nTriangles} triangles, ${pairs} neighbour edges, worst neighbour height difference ` +
     `${worstDiff.toExponential(3)} m${worstDiffAt ? ` (${worstDiffAt})` : ''}; horizon point checked on ${horizonChecked} tiles ` +
-    `(${horizonNA} hemisphere-wide)` + (Number.isFinite(worstNormalDot) ? `; lowest normal·up ${worstNormalDot.toFixed(3)}` : '');
+    `(${horizonNA} hemisphere-wide)` + (Number.isFinite(worstNormalDot) ? `; lowest normal·up ${worstNormalDot.toFixed(3)}` : '') +
+    (source ? `; every post of ${sourcePath} checked against its zoom's bound (${bound.size} zooms)` : '');
   if (failures.length) {
     const max = 60;
     for (const f of failures.slice(0, max)) console.error(`FAIL ${f}`);
