@@ -69,8 +69,8 @@ pub use methods::{
     StatValue, Stats,
 };
 pub use model::{
-    GeoKeys, Georef, InMemory, PointSet, Raster, RasterType, RowSource, SampleType, ValueMapping,
-    Window,
+    GeoKeys, Georef, InMemory, OutputType, PointSet, Raster, RasterType, RowSource, SampleType,
+    ValueMapping, Window,
 };
 pub use quant::ErrorBound;
 

@@ -733,3 +733,170 @@ fn a_wkt_only_crs_reaches_gdal_beside_a_decoded_geotiff() {
         }
     }
 }
+
+/// Issue 35, items 2 and 11: integer codes whose values go below 0 (a u16 PNG of SRTM
+/// heights + 32768, read with `--png-offset -32768`) decode and convert to a GeoTIFF of the
+/// values' own type, Int16 (it was Float32), tiled and untiled; `vtz info` names it beside
+/// the codes' type.
+#[test]
+fn mapped_u16_codes_decode_to_int16_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let pm = vtz::formats::PngMapping {
+        scale: 1.0,
+        offset: -32768.0,
+        nodata_code: None,
+    };
+    let ro = vtz::formats::ReadOptions {
+        png_mapping: Some(pm.clone()),
+        ..Default::default()
+    };
+    let full = vtz::read_path(&corpus("srtm1_N45E013_istria_crop2400.png"), &ro).unwrap();
+    // 2400 x 600 rows of the coast (values -29 ... 1023 m), as the same kind of PNG.
+    let (w, h) = (full.width, 600);
+    let mut r = vtz::Raster::from_values(
+        w,
+        h,
+        full.data[..w * h].to_vec(),
+        None,
+        vtz::SampleType::U16,
+    )
+    .unwrap();
+    r.mapping = full.mapping;
+    assert!(
+        r.data.iter().any(|&v| v < 0.0),
+        "the crop has heights below 0"
+    );
+    let png = dir.path().join("istria.png");
+    let wo = vtz::formats::WriteOptions {
+        png_mapping: Some(pm),
+        ..Default::default()
+    };
+    vtz::write_path(&r, &png, &wo).unwrap();
+    let s = |p: &Path| p.to_string_lossy().into_owned();
+    let conv = dir.path().join("convert.tif");
+    ok(&vtz([
+        "convert",
+        &s(&png),
+        &s(&conv),
+        "--png-offset",
+        "-32768",
+    ]));
+    let back = read(&conv);
+    assert_eq!(back.sample_type, vtz::SampleType::I16, "convert");
+    assert!(back.mapping.is_identity());
+    assert_eq!(back.data, r.data, "convert is exact");
+    for tile in ["512", "0"] {
+        let packed = tmp(&dir, &format!("istria_{tile}.vtz"));
+        ok(&vtz([
+            "encode",
+            &s(&png),
+            "--png-offset",
+            "-32768",
+            "-o",
+            &packed,
+            "--max-error",
+            "1",
+            "--tile",
+            tile,
+        ]));
+        let info = common::json(&vtz(["info", "--json", &packed]));
+        assert_eq!(info["sample_type"], "u16");
+        assert_eq!(info["output_type"]["type"], "i16", "{info}");
+        assert!(info["output_type"]["scale"].is_null());
+        let text = String::from_utf8_lossy(&vtz(["info", &packed]).stdout).into_owned();
+        assert!(text.contains("values as     i16"), "{text}");
+        let dec = dir.path().join(format!("decode_{tile}.tif"));
+        ok(&vtz(["decode", &packed, "-o", &s(&dec)]));
+        let got = read(&dec);
+        assert_eq!(got.sample_type, vtz::SampleType::I16, "decode, tile {tile}");
+        let worst = got
+            .data
+            .iter()
+            .zip(&r.data)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(worst <= 1.0, "tile {tile}: max error {worst}");
+        if have_gdalinfo("the decoded GeoTIFF's band type") {
+            let band = &gdalinfo(&dec)["bands"][0];
+            assert_eq!(band["type"], "Int16", "{band}");
+            assert!(
+                band["scale"].is_null() && band["offset"].is_null(),
+                "{band}"
+            );
+        }
+    }
+}
+
+/// Issue 35, item 6: an Int16 GeoTIFF of codes with a GDAL scale of 10 (metres): the bound
+/// of `--max-error` is in metres, the values GDAL shows (it bounded the codes, so metres
+/// moved by 10); encode, info and compare say so; scale, offset and unit come back.
+#[test]
+fn a_gdal_scale_makes_the_bound_metres() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = |p: &Path| p.to_string_lossy().into_owned();
+    let mut codes = read(&corpus(KAUAI));
+    codes.gdal_metadata = Some(
+        "<GDALMetadata>\n  <Item name=\"SCALE\" sample=\"0\" role=\"scale\">10</Item>\n  \
+         <Item name=\"UNITTYPE\" sample=\"0\" role=\"unittype\">metre</Item>\n</GDALMetadata>"
+            .into(),
+    );
+    // Written as GDAL writes it: the codes and the GDAL_METADATA items (identity mapping).
+    let src = dir.path().join("scaled.tif");
+    codes.mapping = vtz::ValueMapping::default();
+    vtz::formats::write_file(&src, vtz::formats::geotiff_bytes(&codes).unwrap(), true).unwrap();
+    let packed = tmp(&dir, "scaled.vtz");
+    for bound in ["1", "25"] {
+        let e: f64 = bound.parse().unwrap();
+        let o = vtz([
+            "encode",
+            &s(&src),
+            "-o",
+            &packed,
+            "--max-error",
+            bound,
+            "-f",
+        ]);
+        ok(&o);
+        let said = String::from_utf8_lossy(&o.stdout).into_owned() + &common::stderr(&o);
+        assert!(
+            said.contains("values = 0 + 10 * code") && said.contains("max error is in values"),
+            "{said}"
+        );
+        let info = common::json(&vtz(["info", "--json", &packed]));
+        assert_eq!(info["value_scale"], 10.0, "{info}");
+        assert!(info["max_error"].as_f64().unwrap() <= e, "{info}");
+        let dec = dir.path().join(format!("decoded_{bound}.tif"));
+        ok(&vtz(["decode", &packed, "-o", &s(&dec), "-f"]));
+        let cmp = vtz(["compare", &s(&src), &s(&dec)]);
+        let text = String::from_utf8_lossy(&cmp.stdout).into_owned();
+        assert!(text.contains("errors are in values"), "{text}");
+        // GDAL's values (offset + scale * code) of source and decode.
+        if have_gdalinfo("GDAL's unscaled values of a scaled GeoTIFF") {
+            let band = &gdalinfo(&dec)["bands"][0];
+            assert_eq!(band["scale"], 10.0, "{band}");
+            assert_eq!(band["unit"], "metre", "{band}");
+            let metres = |p: &Path, name: &str| {
+                let out = dir.path().join(name);
+                let st = Command::new("gdal_translate")
+                    .args(["-q", "-unscale", "-ot", "Float64"])
+                    .arg(p)
+                    .arg(&out)
+                    .status()
+                    .unwrap();
+                assert!(st.success());
+                read(&out)
+            };
+            let a = metres(&src, &format!("src_m_{bound}.tif"));
+            let b = metres(&dec, &format!("dec_m_{bound}.tif"));
+            assert_eq!(a.mask, b.mask);
+            let worst = (0..a.len())
+                .filter(|&i| a.is_valid(i))
+                .map(|i| (a.data[i] - b.data[i]).abs())
+                .fold(0.0, f64::max);
+            assert!(
+                worst <= e,
+                "--max-error {bound}: GDAL's values moved by {worst} m"
+            );
+        }
+    }
+}

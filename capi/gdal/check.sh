@@ -302,6 +302,131 @@ def fuzz(paths, n, seed=27):
         fail(f"{len(bad)} of {n} mutated files ended gdalinfo with {bad[:10]} (copies kept in /tmp)")
     print(f"   {n} mutated files: exit codes {counts}")
 
+def mapped(vtz, dec_tif, ref, e):
+    """A file of u16 codes mapped by -32768 reads through the plugin as Int16 values (no
+    offset or scale), every read the same as `vtz decode`'s GeoTIFF, within e of ref."""
+    a = info(vtz)["bands"][0]
+    if a["type"] != "Int16" or a.get("offset") not in (None, 0.0) or a.get("scale") not in (None, 1.0):
+        fail(f"{vtz}: band type {a['type']}, offset {a.get('offset')}, scale {a.get('scale')}; expected Int16 values")
+    if info(dec_tif)["bands"][0]["type"] != "Int16":
+        fail(f"{dec_tif}: vtz decode wrote {info(dec_tif)['bands'][0]['type']}, expected Int16")
+    ds = gdal.Open(vtz)
+    got = ds.GetRasterBand(1).ReadAsArray()
+    if not arrays_equal(got, gdal.Open(dec_tif).ReadAsArray()):
+        fail(f"{vtz}: the band differs from vtz decode's GeoTIFF")
+    r = gdal.Open(ref).ReadAsArray().astype(np.float64)
+    err = float(np.max(np.abs(got.astype(np.float64) - r)))
+    if err > e or got.min() >= 0:
+        fail(f"{vtz}: max |band - source| = {err} > {e} (min {got.min()})")
+    print(f"   {os.path.basename(vtz)}: Int16, values {got.min()} .. {got.max()}, max |err| {err} <= {e}")
+
+def mapped_codes(vtz, dec_tif, png, offset, scale, e):
+    """A file of u16 codes with offset and scale reads as UInt16 codes with GDAL's offset and
+    scale, as `vtz decode`'s GeoTIFF; offset + scale * code is within e of the PNG's values."""
+    for p in (vtz, dec_tif):
+        pds = gdal.Open(p)  # held: a band outlives no dataset in GDAL 3.6's Python
+        b = pds.GetRasterBand(1)
+        if (gdal.GetDataTypeName(b.DataType), b.GetOffset(), b.GetScale()) != ("UInt16", offset, scale):
+            fail(f"{p}: {gdal.GetDataTypeName(b.DataType)} offset {b.GetOffset()} scale {b.GetScale()}, expected UInt16 {offset} {scale}")
+    ds = gdal.Open(vtz)
+    got = ds.GetRasterBand(1).ReadAsArray()
+    if not arrays_equal(got, gdal.Open(dec_tif).ReadAsArray()):
+        fail(f"{vtz}: the codes differ from vtz decode's GeoTIFF")
+    v = offset + scale * got.astype(np.float64)
+    r = offset + scale * gdal.Open(png).ReadAsArray().astype(np.float64)
+    err = float(np.max(np.abs(v - r)))
+    if err > e + 1e-9:
+        fail(f"{vtz}: max |value - source| = {err} > {e}")
+    ov = ds.GetRasterBand(1).GetOverview(1).ReadAsArray()
+    if not arrays_equal(ov, got[::4, ::4]) and ds.GetMetadataItem("VTZ_TILED", "IMAGE_STRUCTURE") == "NO":
+        fail(f"{vtz}: overview 2 is not every 4th code")
+    print(f"   {os.path.basename(vtz)}: UInt16 codes, offset {offset} scale {scale}, max |value err| {err:.3f} <= {e}")
+
+def make_scaled(src, dst):
+    """An Int16 GeoTIFF of codes with GDAL scale 10, unit metre (physical = 10 * code)."""
+    s = gdal.Open(src)
+    a = s.ReadAsArray()[600:1200, 200:1000]
+    d = gdal.GetDriverByName("GTiff").Create(dst, a.shape[1], a.shape[0], 1, gdal.GDT_Int16)
+    b = d.GetRasterBand(1)
+    b.WriteArray(a); b.SetScale(10.0); b.SetOffset(0.0); b.SetUnitType("metre")
+    nd = s.GetRasterBand(1).GetNoDataValue()
+    if nd is not None:
+        b.SetNoDataValue(nd)
+
+def scaled_bound(src, out, e):
+    """GDAL's values (offset + scale * sample) of out are within e of src's, with the same
+    scale, offset and unit."""
+    sds, dds = gdal.Open(src), gdal.Open(out)  # held: a band outlives no dataset
+    s, d = sds.GetRasterBand(1), dds.GetRasterBand(1)
+    for what, x, y in [("scale", d.GetScale(), s.GetScale()), ("offset", d.GetOffset() or 0.0, s.GetOffset() or 0.0),
+                       ("unit", d.GetUnitType(), s.GetUnitType()), ("nodata", d.GetNoDataValue(), s.GetNoDataValue())]:
+        if x != y:
+            fail(f"{out}: {what} {x!r} != {src}'s {y!r}")
+    a, b = s.ReadAsArray(), d.ReadAsArray()
+    nd = s.GetNoDataValue()
+    va = a != nd if nd is not None else np.ones(a.shape, bool)
+    if not np.array_equal(va, b != nd if nd is not None else va):
+        fail(f"{out}: nodata mask differs")
+    pa = (s.GetOffset() or 0.0) + (s.GetScale() or 1.0) * a[va].astype(np.float64)
+    pb = (d.GetOffset() or 0.0) + (d.GetScale() or 1.0) * b[va].astype(np.float64)
+    err = float(np.max(np.abs(pa - pb)))
+    if err > e:
+        fail(f"{out}: max |value - source value| = {err} > {e} (scale {s.GetScale()})")
+    print(f"   {os.path.basename(out)}: {gdal.GetDataTypeName(d.DataType)}, scale {d.GetScale()}, unit {d.GetUnitType()}: max |value err| {err} <= {e}")
+
+def make_int64(dst, kind, big):
+    """An Int64/UInt64 GeoTIFF: values near 2^60 (big) or below 2^53."""
+    t = gdal.GDT_UInt64 if kind == "u" else gdal.GDT_Int64
+    base = (1 << 60) if big == "1" else (1 << 40)
+    a = (np.arange(64 * 48, dtype=np.int64).reshape(48, 64) * 3 + 1)
+    a = (a + base).astype(np.uint64 if kind == "u" else np.int64)
+    if kind == "i":
+        a = -a
+    d = gdal.GetDriverByName("GTiff").Create(dst, 64, 48, 1, t)
+    d.GetRasterBand(1).WriteArray(a)
+
+def same_values(src, out):
+    """The same numbers (any types)."""
+    a = gdal.Open(src).ReadAsArray()
+    b = gdal.Open(out).ReadAsArray()
+    if a.shape != b.shape or not all(int(x) == int(y) for x, y in zip(a.ravel().tolist(), b.ravel().tolist())):
+        fail(f"{out}: values differ from {src}'s")
+    ods = gdal.Open(out)
+    print(f"   {os.path.basename(out)}: {gdal.GetDataTypeName(ods.GetRasterBand(1).DataType)}, the same {a.size} integers")
+
+def make_masked(src, dst, t):
+    """A GeoTIFF with an internal per-dataset mask (GDAL_TIFF_INTERNAL_MASK) and no nodata."""
+    a = gdal.Open(src).ReadAsArray()[600:900, 200:600].astype(np.float32 if t == "f" else np.int16)
+    gdal.SetConfigOption("GDAL_TIFF_INTERNAL_MASK", "YES")
+    d = gdal.GetDriverByName("GTiff").Create(dst, a.shape[1], a.shape[0], 1,
+                                             gdal.GDT_Float32 if t == "f" else gdal.GDT_Int16)
+    b = d.GetRasterBand(1)
+    b.WriteArray(a)
+    b.CreateMaskBand(gdal.GMF_PER_DATASET)
+    m = np.full(a.shape, 255, np.uint8)
+    m[40:120, 50:170] = 0
+    m[:, :7] = 0
+    b.GetMaskBand().WriteArray(m)
+    d = None
+    gdal.SetConfigOption("GDAL_TIFF_INTERNAL_MASK", None)
+    sds = gdal.Open(dst)  # held: a band outlives no dataset
+    s = sds.GetRasterBand(1)
+    if s.GetMaskFlags() != gdal.GMF_PER_DATASET or s.GetNoDataValue() is not None:
+        fail(f"{dst}: mask flags {s.GetMaskFlags()}, nodata {s.GetNoDataValue()}")
+
+def masked(src, vtz):
+    """The .vtz's mask (from its nodata) is the source's mask band; valid samples exact."""
+    sds, dds = gdal.Open(src), gdal.Open(vtz)  # held: a band outlives no dataset
+    s, d = sds.GetRasterBand(1), dds.GetRasterBand(1)
+    ms, md_ = s.GetMaskBand().ReadAsArray(), d.GetMaskBand().ReadAsArray()
+    if not np.array_equal(ms != 0, md_ != 0):
+        fail(f"{vtz}: {int(np.sum((ms != 0) != (md_ != 0)))} samples differ from the source's mask "
+             f"(masked: {int(np.sum(ms == 0))} in the source, {int(np.sum(md_ == 0))} here; nodata {d.GetNoDataValue()})")
+    a, b = s.ReadAsArray(), d.ReadAsArray()
+    if not np.array_equal(a[ms != 0], b[ms != 0]):
+        fail(f"{vtz}: valid samples changed")
+    print(f"   {os.path.basename(vtz)}: {int(np.sum(ms == 0))} masked samples are nodata ({d.GetNoDataValue()}), the rest exact")
+
 if __name__ == "__main__":
     cmd, args = sys.argv[1], sys.argv[2:]
     if cmd == "make_float": make_float(*args)
@@ -316,6 +441,14 @@ if __name__ == "__main__":
     elif cmd == "bound": bound(args[0], args[1], float(args[2]))
     elif cmd == "corrupt_offset": corrupt_offset(*args)
     elif cmd == "fuzz": fuzz(args[1:], int(args[0]))
+    elif cmd == "mapped": mapped(args[0], args[1], args[2], float(args[3]))
+    elif cmd == "mapped_codes": mapped_codes(args[0], args[1], args[2], float(args[3]), float(args[4]), float(args[5]))
+    elif cmd == "make_scaled": make_scaled(*args)
+    elif cmd == "scaled_bound": scaled_bound(args[0], args[1], float(args[2]))
+    elif cmd == "make_int64": make_int64(*args)
+    elif cmd == "same_values": same_values(*args)
+    elif cmd == "make_masked": make_masked(*args)
+    elif cmd == "masked": masked(*args)
     else: fail(f"unknown helper {cmd}")
 PYEOF
 
@@ -471,5 +604,56 @@ gdal_translate -q -srcwin 500 500 300 200 big.tif small.tif
 "$VTZ" -q encode small.tif -o small_v1.vtz --max-error 2
 "$VTZ" -q encode small.tif -o small_fast.vtz --effort 1
 "$PY" chk.py fuzz "${MUTATIONS:-1000}" small_v2.vtz small_v1.vtz small_fast.vtz
+
+step "9. integer codes with a value mapping, GDAL's scale/offset, 64-bit integers, mask bands"
+echo "   a u16 PNG of SRTM heights + 32768 (Istria, -29 .. 1023 m) read with --png-offset -32768:"
+echo "   GDAL's band is Int16 values (untiled, tiled), windows and overviews as vtz decodes them"
+istria="$root/corpus/srtm1_N45E013_istria_crop2400.png"
+"$VTZ" -q convert "$istria" istria.tif --png-offset -32768
+for t in 0 512; do
+    "$VTZ" -q encode "$istria" --png-offset -32768 -o "istria_$t.vtz" --max-error 1 --tile $t
+    "$VTZ" -q decode "istria_$t.vtz" -o "istria_$t.tif"
+    "$PY" chk.py mapped "istria_$t.vtz" "istria_$t.tif" istria.tif 1
+    "$PY" chk.py windows "istria_$t.vtz" "istria_$t.tif"
+    "$VTZ" -q decode "istria_$t.vtz" --overview 2 -o "istria_${t}_ov2.tif"
+    "$PY" chk.py overview_after_full "istria_$t.vtz" "istria_${t}_ov2.tif" 2
+    gdal_translate -q -of GTiff "istria_$t.vtz" "istria_${t}_gdal.tif"
+    "$PY" chk.py same_samples "istria_${t}_gdal.tif" "istria_$t.tif"
+done
+echo "   the same PNG as decimetres (offset -3276.8, scale 0.1): UInt16 codes, GDAL offset/scale"
+for t in 0 512; do
+    "$VTZ" -q encode "$istria" --png-offset -3276.8 --png-scale 0.1 -o "dm_$t.vtz" --max-error 0.5 --tile $t
+    "$VTZ" -q decode "dm_$t.vtz" -o "dm_$t.tif"
+    "$PY" chk.py mapped_codes "dm_$t.vtz" "dm_$t.tif" "$istria" -3276.8 0.1 0.5
+done
+echo "   an Int16 GeoTIFF of codes with GDAL scale 10 (metres): MAX_Z_ERROR and --max-error bound metres"
+"$PY" chk.py make_scaled kauai.tif s10.tif
+"$VTZ" -q encode s10.tif -o s10_cli.vtz --max-error 1
+"$VTZ" -q decode s10_cli.vtz -o s10_cli.tif
+"$PY" chk.py scaled_bound s10.tif s10_cli.tif 1
+"$VTZ" -q encode s10.tif -o s10_cli25.vtz --max-error 25
+"$VTZ" -q decode s10_cli25.vtz -o s10_cli25.tif
+"$PY" chk.py scaled_bound s10.tif s10_cli25.tif 25
+gdal_translate -q -of VTZ -co MAX_Z_ERROR=1 s10.tif s10_gdal1.vtz
+"$PY" chk.py scaled_bound s10.tif s10_gdal1.vtz 1
+gdal_translate -q -of VTZ -co MAX_Z_ERROR=25 s10.tif s10_gdal.vtz
+"$PY" chk.py scaled_bound s10.tif s10_gdal.vtz 25
+"$VTZ" info s10_gdal.vtz | grep -q "value = 0 + 10 \* code" || { echo "FAIL: vtz info does not show the scale" >&2; exit 1; }
+ok "vtz info names the scale"
+echo "   64-bit integers: stored as Float64 only when every value is exact (|v| <= 2^53)"
+"$PY" chk.py make_int64 u64_big.tif u 1
+"$PY" chk.py make_int64 i64_big.tif i 1
+"$PY" chk.py make_int64 u64_small.tif u 0
+expect_error "not exactly a Float64" gdal_translate -q -of VTZ -co LOSSLESS=YES u64_big.tif bad.vtz
+[ ! -e bad.vtz ] || { echo "FAIL: a refused UInt64 copy left bad.vtz" >&2; exit 1; }
+expect_error "not exactly a Float64" gdal_translate -q -of VTZ -co MAX_Z_ERROR=1 i64_big.tif bad.vtz
+gdal_translate -q -of VTZ -co LOSSLESS=YES u64_small.tif u64_small.vtz 2>/dev/null
+"$PY" chk.py same_values u64_small.tif u64_small.vtz
+echo "   an internal mask band and no nodata: masked samples are nodata in the copy"
+for t in f i; do
+    "$PY" chk.py make_masked kauai.tif "masked_$t.tif" $t
+    gdal_translate -q -of VTZ "masked_$t.tif" "masked_$t.vtz"
+    "$PY" chk.py masked "masked_$t.tif" "masked_$t.vtz"
+done
 
 echo "all GDAL plugin checks passed"

@@ -8,7 +8,9 @@
  * What GDAL sees:
  * - Identify: the 8-byte magic `\x89VTZ\r\n\x1a\n`. Format versions 1 (untiled raster)
  *   and 2 (tiled raster) open; version 3 (a point set) is refused with a clear error.
- * - One read-only band of the file's sample type, with nodata, geotransform, CRS,
+ * - One read-only band of the file's values (the smallest type that holds them; or its
+ *   integer codes with the value mapping as the band's offset and scale: VtzInfo's
+ *   value_type, vtz_read_band), with nodata, geotransform, CRS,
  *   AREA_OR_POINT, and the GDAL_METADATA XML applied as the GTiff driver applies its
  *   GDAL_METADATA tag (dataset items, band items: description, unit type, offset, scale,
  *   metadata, per domain).
@@ -30,7 +32,10 @@
  *   missing tiles (decoded in parallel) stored as blocks (see VTZRasterBand::IRasterIO).
  *   Resampled reads go through GDAL's default block path.
  * - CreateCopy (gdal_translate -of VTZ) with MAX_Z_ERROR, LOSSLESS, METHOD, EFFORT, TILE,
- *   THREADS.
+ *   THREADS. An integer band's offset/scale becomes the file's value mapping (MAX_Z_ERROR
+ *   bounds GDAL's values); Int64/UInt64 are stored as Float64 only when every value is
+ *   exact (|v| <= 2^53), else refused; samples a mask band hides (per-dataset, internal
+ *   or .msk) are nodata (the band's, or an unused end of the type's range, declared).
  * Threads: the GDAL_NUM_THREADS configuration option (a number or ALL_CPUS, the default)
  * sets the threads of a decode.
  */
@@ -45,6 +50,7 @@
 #include <algorithm>
 #include <climits>
 #include <cmath>
+#include <limits>
 #include <cstring>
 #include <memory>
 #include <new>
@@ -258,7 +264,16 @@ VTZRasterBand::VTZRasterBand(VTZDataset *poDSIn, int nBlockX, int nBlockY,
     if (poDSIn->m_sInfo.has_nodata)
     {
         m_bHasNoData = true;
-        m_dfNoData = poDSIn->m_sInfo.nodata;
+        // As the band stores it: the value, or its code when the band holds codes.
+        m_dfNoData = poDSIn->m_sInfo.value_nodata;
+    }
+    if (poDSIn->m_sInfo.has_offset_scale)
+    {
+        // Codes with the file's value mapping as the band's offset and scale (a GDAL
+        // scale/offset of the metadata applies after it: ApplyGDALMetadata).
+        m_bHasOffset = m_bHasScale = true;
+        m_dfOffset = poDSIn->m_sInfo.value_offset;
+        m_dfScale = poDSIn->m_sInfo.value_scale;
     }
 }
 
@@ -613,9 +628,9 @@ const GByte *VTZDataset::EnsureCache(int nLevel)
     }
     CPLDebug("VTZ", "%s: vtz_read of level %d, 0,0 %ux%u (cached whole)",
              GetDescription(), nLevel, nW, nH);
-    if (vtz_read_overview(m_hFile, static_cast<uint32_t>(nLevel), 0, 0, nW, nH,
-                          m_sInfo.sample_type, abyCache.data(), nBytes,
-                          DecodeThreads()) != VTZ_OK)
+    if (vtz_read_band(m_hFile, static_cast<uint32_t>(nLevel), 0, 0, nW, nH,
+                      m_sInfo.value_type, abyCache.data(), nBytes,
+                      DecodeThreads()) != VTZ_OK)
     {
         ReportVtzError(GetDescription());
         std::vector<GByte>().swap(abyCache);
@@ -644,12 +659,12 @@ CPLErr VTZDataset::ReadWindow(int nLevel, int nXOff, int nYOff, int nXSize,
         return CE_Failure;
     CPLDebug("VTZ", "%s: vtz_read of level %d, %d,%d %dx%d", GetDescription(),
              nLevel, nXOff, nYOff, nXSize, nYSize);
-    const int rc = vtz_read_overview(m_hFile, static_cast<uint32_t>(nLevel),
-                            static_cast<uint32_t>(nXOff),
-                            static_cast<uint32_t>(nYOff),
-                            static_cast<uint32_t>(nXSize),
-                            static_cast<uint32_t>(nYSize), m_sInfo.sample_type,
-                            pBuf, nBytes, DecodeThreads());
+    const int rc = vtz_read_band(m_hFile, static_cast<uint32_t>(nLevel),
+                                 static_cast<uint32_t>(nXOff),
+                                 static_cast<uint32_t>(nYOff),
+                                 static_cast<uint32_t>(nXSize),
+                                 static_cast<uint32_t>(nYSize), m_sInfo.value_type,
+                                 pBuf, nBytes, DecodeThreads());
     if (rc != VTZ_OK)
     {
         ReportVtzError(nLevel == 0
@@ -712,6 +727,8 @@ void VTZDataset::ApplyGDALMetadata(const char *pszXML)
         return;
     }
     VTZRasterBand *poBand = static_cast<VTZRasterBand *>(GetRasterBand(1));
+    bool bMDOffset = false, bMDScale = false;
+    double dfMDOffset = 0.0, dfMDScale = 1.0;
     for (CPLXMLNode *psItem = psRoot->psChild; psItem; psItem = psItem->psNext)
     {
         if (psItem->eType != CXT_Element || !EQUAL(psItem->pszValue, "Item"))
@@ -739,13 +756,13 @@ void VTZDataset::ApplyGDALMetadata(const char *pszXML)
                 poBand->m_osUnitType = pszText;
             else if (EQUAL(pszRole, "offset"))
             {
-                poBand->m_bHasOffset = true;
-                poBand->m_dfOffset = CPLAtofM(pszText);
+                bMDOffset = true;
+                dfMDOffset = CPLAtofM(pszText);
             }
             else if (EQUAL(pszRole, "scale"))
             {
-                poBand->m_bHasScale = true;
-                poBand->m_dfScale = CPLAtofM(pszText);
+                bMDScale = true;
+                dfMDScale = CPLAtofM(pszText);
             }
             else if (pszRole[0] == '\0')
                 poBand->GDALRasterBand::SetMetadataItem(pszKey, pszText,
@@ -755,6 +772,17 @@ void VTZDataset::ApplyGDALMetadata(const char *pszXML)
         CPLFree(pszText);
     }
     CPLDestroyXMLNode(psRoot);
+    // The metadata's offset and scale map the file's values: after the band's own
+    // code -> value mapping when it holds codes.
+    if (bMDOffset || bMDScale)
+    {
+        const double dfO1 = poBand->m_bHasOffset ? poBand->m_dfOffset : 0.0;
+        const double dfS1 = poBand->m_bHasScale ? poBand->m_dfScale : 1.0;
+        poBand->m_bHasOffset = bMDOffset || poBand->m_bHasOffset;
+        poBand->m_bHasScale = bMDScale || poBand->m_bHasScale;
+        poBand->m_dfOffset = dfMDOffset + dfMDScale * dfO1;
+        poBand->m_dfScale = dfMDScale * dfS1;
+    }
 }
 
 int VTZDataset::Identify(GDALOpenInfo *poOpenInfo)
@@ -818,10 +846,12 @@ GDALDataset *VTZDataset::Open(GDALOpenInfo *poOpenInfo)
         return nullptr;
     }
     const VtzInfo &sInfo = poDS->m_sInfo;
-    if (!VtzToGDALType(sInfo.sample_type, &poDS->m_eDT))
+    // The band's type is the values' (or, with an offset and scale, the codes'): the
+    // C ABI's one rule (capi/README.md, "Output types").
+    if (!VtzToGDALType(sInfo.value_type, &poDS->m_eDT))
     {
         CPLError(CE_Failure, CPLE_NotSupported, "vtz: %s: sample type %d",
-                 pszFilename, static_cast<int>(sInfo.sample_type));
+                 pszFilename, static_cast<int>(sInfo.value_type));
         return nullptr;
     }
     poDS->m_nDTSize = GDALGetDataTypeSizeBytes(poDS->m_eDT);
@@ -1029,7 +1059,7 @@ void AppendMetadata(CPLXMLNode *psRoot, GDALMajorObject *poObj, bool bBand)
 }
 
 /// The GDAL_METADATA XML of a dataset and its band 1, as GTiff writes it (empty: none).
-std::string BuildGDALMetadata(GDALDataset *poSrcDS)
+std::string BuildGDALMetadata(GDALDataset *poSrcDS, bool bOffsetScale)
 {
     CPLXMLNode *psRoot = CPLCreateXMLNode(nullptr, CXT_Element, "GDALMetadata");
     AppendMetadata(psRoot, poSrcDS, false);
@@ -1037,12 +1067,12 @@ std::string BuildGDALMetadata(GDALDataset *poSrcDS)
     AppendMetadata(psRoot, poBand, true);
     int bHas = FALSE;
     const double dfOffset = poBand->GetOffset(&bHas);
-    if (bHas && dfOffset != 0.0)
+    if (bOffsetScale && bHas && dfOffset != 0.0)
         AppendItem(psRoot, "OFFSET", CPLSPrintf("%.17g", dfOffset), true,
                    "offset", nullptr);
     bHas = FALSE;
     const double dfScale = poBand->GetScale(&bHas);
-    if (bHas && dfScale != 1.0)
+    if (bOffsetScale && bHas && dfScale != 1.0)
         AppendItem(psRoot, "SCALE", CPLSPrintf("%.17g", dfScale), true, "scale",
                    nullptr);
     const char *pszUnit = poBand->GetUnitType();
@@ -1183,6 +1213,13 @@ GDALDataset *VTZDataset::CreateCopy(const char *pszFilename, GDALDataset *poSrcD
     }
     GDALRasterBand *poBand = poSrcDS->GetRasterBand(1);
     GDALDataType eDT = poBand->GetRasterDataType();
+    // 64-bit integers are stored as Float64, which holds them exactly only within
+    // +-2^53: the band is read as it is and refused when a value is beyond (below).
+    bool b64 = false;
+#if GDAL_VERSION_NUM >= GDAL_COMPUTE_VERSION(3, 5, 0)
+    b64 = eDT == GDT_Int64 || eDT == GDT_UInt64;
+#endif
+    const GDALDataType eSrcDT = eDT;
     if (GDALToVtzType(eDT) < 0)
     {
         if (bStrict || GDALDataTypeIsComplex(eDT))
@@ -1260,7 +1297,23 @@ GDALDataset *VTZDataset::CreateCopy(const char *pszFilename, GDALDataset *poSrcD
         sOpts.has_nodata = 1;
         sOpts.nodata = dfNoData;
     }
-    const std::string osMD = BuildGDALMetadata(poSrcDS);
+    // The band's offset and scale over integer codes are the file's value mapping (its
+    // values are GDAL's, and MAX_Z_ERROR bounds them, as `vtz encode` does with a
+    // GeoTIFF's scale/offset); over floats they stay GDAL metadata.
+    {
+        int bHasOffset = FALSE, bHasScale = FALSE;
+        const double dfOffset = poBand->GetOffset(&bHasOffset);
+        const double dfScale = poBand->GetScale(&bHasScale);
+        const bool bCodes = GDALToVtzType(eDT) >= 0 && !GDALDataTypeIsFloating(eDT);
+        if (bCodes && ((bHasOffset && dfOffset != 0.0) || (bHasScale && dfScale != 1.0)) &&
+            std::isfinite(dfOffset) && std::isfinite(dfScale) && dfScale != 0.0)
+        {
+            sOpts.has_offset_scale = 1;
+            sOpts.value_offset = bHasOffset ? dfOffset : 0.0;
+            sOpts.value_scale = bHasScale ? dfScale : 1.0;
+        }
+    }
+    const std::string osMD = BuildGDALMetadata(poSrcDS, !sOpts.has_offset_scale);
     if (!osMD.empty())
         sOpts.gdal_metadata = osMD.c_str();
 
@@ -1271,19 +1324,142 @@ GDALDataset *VTZDataset::CreateCopy(const char *pszFilename, GDALDataset *poSrcD
     void *pData = VSI_MALLOC3_VERBOSE(nXSize, nYSize, nDTSize);
     if (pData == nullptr)
         return nullptr;
+    const size_t nSamples = static_cast<size_t>(nXSize) * static_cast<size_t>(nYSize);
     void *pScaled = GDALCreateScaledProgress(0.0, 0.5, pfnProgress, pProgressData);
     GDALRasterIOExtraArg sExtra;
     INIT_RASTERIO_EXTRA_ARG(sExtra);
     sExtra.pfnProgress = GDALScaledProgress;
     sExtra.pProgressData = pScaled;
-    const CPLErr eErr =
-        poBand->RasterIO(GF_Read, 0, 0, nXSize, nYSize, pData, nXSize, nYSize,
-                         eDT, 0, 0, &sExtra);
+    CPLErr eErr;
+    if (b64)
+    {
+        // 64-bit integers, read as they are: each must be exactly a Float64 (|v| <= 2^53),
+        // else the file would hold other values than the source's.
+        std::vector<GInt64> anRaw;
+        try
+        {
+            anRaw.resize(nSamples);
+        }
+        catch (const std::bad_alloc &)
+        {
+            VSIFree(pData);
+            CPLError(CE_Failure, CPLE_OutOfMemory, "vtz: cannot read the band");
+            return nullptr;
+        }
+        eErr = poBand->RasterIO(GF_Read, 0, 0, nXSize, nYSize, anRaw.data(), nXSize,
+                                nYSize, eSrcDT, 0, 0, &sExtra);
+        const double dfExact = 9007199254740992.0;  // 2^53
+        for (size_t i = 0; eErr == CE_None && i < nSamples; ++i)
+        {
+            const bool bUnsigned = eSrcDT != GDT_Int64;
+            const uint64_t nU = static_cast<uint64_t>(anRaw[i]);
+            const double dfV = bUnsigned ? static_cast<double>(nU)
+                                         : static_cast<double>(anRaw[i]);
+            if (std::fabs(dfV) > dfExact)
+            {
+                CPLError(CE_Failure, CPLE_NotSupported,
+                         "vtz: %s value %s at row %d, col %d is not exactly a Float64 "
+                         "(vtz stores 64-bit integers as Float64, exact only within "
+                         "+-2^53)",
+                         GDALGetDataTypeName(eSrcDT),
+                         bUnsigned ? CPLSPrintf(CPL_FRMT_GUIB, static_cast<GUIntBig>(nU))
+                                   : CPLSPrintf(CPL_FRMT_GIB,
+                                                static_cast<GIntBig>(anRaw[i])),
+                         static_cast<int>(i / nXSize), static_cast<int>(i % nXSize));
+                eErr = CE_Failure;
+                break;
+            }
+            static_cast<double *>(pData)[i] = dfV;
+        }
+    }
+    else
+    {
+        eErr = poBand->RasterIO(GF_Read, 0, 0, nXSize, nYSize, pData, nXSize, nYSize,
+                                eDT, 0, 0, &sExtra);
+    }
     GDALDestroyScaledProgress(pScaled);
     if (eErr != CE_None)
     {
         VSIFree(pData);
         return nullptr;
+    }
+    // A mask band of its own (a per-dataset mask, GDAL_TIFF_INTERNAL_MASK or a .msk, or
+    // an alpha band): its masked samples are nodata, the band's nodata value or, without
+    // one, an end of the type's range that no valid sample holds, declared as nodata (so
+    // GDAL derives the same mask from the .vtz; a .vtz header cannot declare NaN).
+    const int nMaskFlags = poBand->GetMaskFlags();
+    if (!(nMaskFlags & GMF_ALL_VALID) && !(nMaskFlags & GMF_NODATA))
+    {
+        std::vector<GByte> abyMask;
+        std::vector<double> adfValues;
+        try
+        {
+            abyMask.resize(nSamples);
+            adfValues.resize(nSamples);
+        }
+        catch (const std::bad_alloc &)
+        {
+            VSIFree(pData);
+            CPLError(CE_Failure, CPLE_OutOfMemory, "vtz: cannot read the mask band");
+            return nullptr;
+        }
+        if (poBand->GetMaskBand()->RasterIO(GF_Read, 0, 0, nXSize, nYSize,
+                                            abyMask.data(), nXSize, nYSize, GDT_Byte,
+                                            0, 0, nullptr) != CE_None)
+        {
+            VSIFree(pData);
+            return nullptr;
+        }
+        GDALCopyWords64(pData, eDT, nDTSize, adfValues.data(), GDT_Float64,
+                        sizeof(double), static_cast<GPtrDiff_t>(nSamples));
+        size_t nMasked = 0;
+        for (size_t i = 0; i < nSamples; ++i)
+            nMasked += abyMask[i] == 0;
+        double dfFill = dfNoData;
+        if (nMasked > 0 && !bHasNoData)
+        {
+            // As vtz's GeoTIFF writer: the type's lowest value (highest for unsigned
+            // types), else the other end, when no valid sample holds it.
+            const double dfMin = GDALAdjustValueToDataType(
+                eDT, -std::numeric_limits<double>::max(), nullptr, nullptr);
+            const double dfMax = GDALAdjustValueToDataType(
+                eDT, std::numeric_limits<double>::max(), nullptr, nullptr);
+            const bool bUnsigned = dfMin == 0.0;
+            const double adfTry[2] = {bUnsigned ? dfMax : dfMin, bUnsigned ? dfMin : dfMax};
+            bool bFound = false;
+            for (double dfTry : adfTry)
+            {
+                bool bUsed = false;
+                for (size_t i = 0; i < nSamples && !bUsed; ++i)
+                    bUsed = abyMask[i] != 0 && adfValues[i] == dfTry;
+                if (!bUsed)
+                {
+                    dfFill = dfTry;
+                    bFound = true;
+                    break;
+                }
+            }
+            if (!bFound)
+            {
+                VSIFree(pData);
+                CPLError(CE_Failure, CPLE_NotSupported,
+                         "vtz: the band has masked samples and no nodata value, and "
+                         "valid samples hold both ends of %s: set one with "
+                         "gdal_translate -a_nodata",
+                         GDALGetDataTypeName(eDT));
+                return nullptr;
+            }
+            sOpts.has_nodata = 1;
+            sOpts.nodata = dfFill;
+        }
+        for (size_t i = 0; i < nSamples; ++i)
+            if (abyMask[i] == 0)
+                adfValues[i] = dfFill;
+        if (nMasked > 0)
+            GDALCopyWords64(adfValues.data(), GDT_Float64, sizeof(double), pData, eDT,
+                            nDTSize, static_cast<GPtrDiff_t>(nSamples));
+        CPLDebug("VTZ", "%s: %zu samples masked by the source's mask band are nodata",
+                 pszFilename, nMasked);
     }
     if (!pfnProgress(0.5, "encoding", pProgressData))
     {

@@ -106,6 +106,20 @@ typedef struct VtzInfo {
   double max_error;
   // Bytes of the whole file.
   uint64_t file_bytes;
+  // The type a GDAL band of the file holds, and `vtz_read_band` gives (`VTZ_U8` …
+  // `VTZ_F64`; capi/README.md, "Output types"): `sample_type` for the identity mapping,
+  // the smallest integer type holding the values for an integer mapping (a u16 PNG mapped
+  // by −32768: `VTZ_I16`), else the codes' type (then `has_offset_scale` is 1).
+  int32_t value_type;
+  // 1 when `vtz_read_band` gives codes, whose values are `value_offset + value_scale ·
+  // code` (GDAL's band offset and scale); 0 when it gives the values.
+  int32_t has_offset_scale;
+  // The band offset (0 when `has_offset_scale` is 0).
+  double value_offset;
+  // The band scale (1 when `has_offset_scale` is 0).
+  double value_scale;
+  // The nodata value as `vtz_read_band` gives it (its code when `has_offset_scale` is 1).
+  double value_nodata;
 } VtzInfo;
 
 // How `vtz_encode` / `vtz_encode_to_path` encode. Start from `vtz_encode_options_init`.
@@ -147,6 +161,14 @@ typedef struct VtzEncodeOptions {
   void (*progress)(double fraction, void *progress_data);
   // Passed to `progress` as it is.
   void *progress_data;
+  // 1 when `data` holds integer codes whose values are `value_offset + value_scale ·
+  // code` (GDAL's band offset and scale; `nodata` is then a code too): the file keeps the
+  // mapping, `max_error` bounds the values. Only for integer data types.
+  int32_t has_offset_scale;
+  // Value of code 0.
+  double value_offset;
+  // Value per code step (finite, not 0).
+  double value_scale;
 } VtzEncodeOptions;
 
 #ifdef __cplusplus
@@ -256,6 +278,25 @@ int32_t vtz_read_overview(const struct VtzFile *file,
                           void *buf,
                           size_t buf_bytes,
                           uint32_t threads);
+
+// As [`vtz_read_overview`], giving what a GDAL band of the file holds (`VtzInfo::
+// value_type`; capi/README.md, "Output types"): the values, or, when
+// `VtzInfo::has_offset_scale` is 1, each value's integer code `(value − value_offset) /
+// value_scale` (nodata samples: `value_nodata`). `buf_type` is `value_type` or a wider
+// type. The GDAL plugin reads its bands with it.
+//
+// # Safety
+// As [`vtz_read`].
+int32_t vtz_read_band(const struct VtzFile *file,
+                      uint32_t level,
+                      uint32_t x,
+                      uint32_t y,
+                      uint32_t width,
+                      uint32_t height,
+                      int32_t buf_type,
+                      void *buf,
+                      size_t buf_bytes,
+                      uint32_t threads);
 
 // Options with their defaults: lossless, `best`, effort 5, vtz's tiling, all threads, no
 // nodata, no georeferencing.

@@ -23,7 +23,7 @@ use std::path::PathBuf;
 use std::sync::Mutex;
 use vtz::{
     Decoder, EncodeOptions, Error, ErrorBound, FileInfo, Georef, Limits, Method, Raster,
-    RasterType, SampleType, Window,
+    RasterType, SampleType, ValueMapping, Window,
 };
 
 /// Success.
@@ -133,6 +133,20 @@ pub struct VtzInfo {
     pub max_error: f64,
     /// Bytes of the whole file.
     pub file_bytes: u64,
+    /// The type a GDAL band of the file holds, and `vtz_read_band` gives (`VTZ_U8` …
+    /// `VTZ_F64`; capi/README.md, "Output types"): `sample_type` for the identity mapping,
+    /// the smallest integer type holding the values for an integer mapping (a u16 PNG mapped
+    /// by −32768: `VTZ_I16`), else the codes' type (then `has_offset_scale` is 1).
+    pub value_type: i32,
+    /// 1 when `vtz_read_band` gives codes, whose values are `value_offset + value_scale ·
+    /// code` (GDAL's band offset and scale); 0 when it gives the values.
+    pub has_offset_scale: i32,
+    /// The band offset (0 when `has_offset_scale` is 0).
+    pub value_offset: f64,
+    /// The band scale (1 when `has_offset_scale` is 0).
+    pub value_scale: f64,
+    /// The nodata value as `vtz_read_band` gives it (its code when `has_offset_scale` is 1).
+    pub value_nodata: f64,
 }
 
 /// How `vtz_encode` / `vtz_encode_to_path` encode. Start from `vtz_encode_options_init`.
@@ -176,6 +190,14 @@ pub struct VtzEncodeOptions {
     pub progress: Option<unsafe extern "C" fn(fraction: f64, progress_data: *mut c_void)>,
     /// Passed to `progress` as it is.
     pub progress_data: *mut c_void,
+    /// 1 when `data` holds integer codes whose values are `value_offset + value_scale ·
+    /// code` (GDAL's band offset and scale; `nodata` is then a code too): the file keeps the
+    /// mapping, `max_error` bounds the values. Only for integer data types.
+    pub has_offset_scale: i32,
+    /// Value of code 0.
+    pub value_offset: f64,
+    /// Value per code step (finite, not 0).
+    pub value_scale: f64,
 }
 
 thread_local! {
@@ -432,9 +454,18 @@ pub unsafe extern "C" fn vtz_get_info(file: *const VtzFile, out: *mut VtzInfo) -
             tile_rows: 1,
             ..Default::default()
         };
+        let kind = vtz::OutputType::of(i.sample_type, i.mapping, i.nodata);
+        v.value_type = type_code(kind.sample_type());
+        v.value_scale = 1.0;
+        if let Some(m) = kind.offset_scale() {
+            v.has_offset_scale = 1;
+            v.value_offset = m.offset;
+            v.value_scale = m.scale;
+        }
         if let Some(nd) = i.nodata {
             v.has_nodata = 1;
             v.nodata = nd;
+            v.value_nodata = kind.stored(nd);
         }
         if let Some((lo, hi)) = i.range {
             v.has_range = 1;
@@ -545,11 +576,11 @@ pub unsafe extern "C" fn vtz_get_georef_geotiff(
 }
 
 macro_rules! fill {
-    ($dec:expr, $buf:expr, $n:expr, $t:ty) => {{
+    ($dec:expr, $buf:expr, $n:expr, $t:ty, $as:expr) => {{
         // SAFETY: `$buf` holds `$n` samples of `$t` (checked against the caller's byte
         // count) and is suitably aligned (checked by the caller of this macro).
         let s = unsafe { std::slice::from_raw_parts_mut($buf as *mut $t, $n) };
-        $dec.decode_into::<$t>(s)
+        $dec.decode_into_as::<$t>(s, $as)
     }};
 }
 
@@ -588,6 +619,7 @@ pub unsafe extern "C" fn vtz_read(
             buf,
             buf_bytes,
             threads,
+            false,
         )
     }
 }
@@ -627,14 +659,54 @@ pub unsafe extern "C" fn vtz_read_overview(
             buf,
             buf_bytes,
             threads,
+            false,
         )
     }
 }
 
-/// [`vtz_read`] and [`vtz_read_overview`] (`level` 0: the full resolution).
+/// As [`vtz_read_overview`], giving what a GDAL band of the file holds (`VtzInfo::
+/// value_type`; capi/README.md, "Output types"): the values, or, when
+/// `VtzInfo::has_offset_scale` is 1, each value's integer code `(value − value_offset) /
+/// value_scale` (nodata samples: `value_nodata`). `buf_type` is `value_type` or a wider
+/// type. The GDAL plugin reads its bands with it.
 ///
 /// # Safety
 /// As [`vtz_read`].
+#[unsafe(no_mangle)]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn vtz_read_band(
+    file: *const VtzFile,
+    level: u32,
+    x: u32,
+    y: u32,
+    width: u32,
+    height: u32,
+    buf_type: i32,
+    buf: *mut std::ffi::c_void,
+    buf_bytes: usize,
+    threads: u32,
+) -> i32 {
+    // SAFETY: the caller's promises, passed on.
+    unsafe {
+        read(
+            file,
+            level,
+            [x, y, width, height],
+            buf_type,
+            buf,
+            buf_bytes,
+            threads,
+            true,
+        )
+    }
+}
+
+/// [`vtz_read`], [`vtz_read_overview`] (`level` 0: the full resolution) and, with `band`,
+/// [`vtz_read_band`].
+///
+/// # Safety
+/// As [`vtz_read`].
+#[allow(clippy::too_many_arguments)]
 unsafe fn read(
     file: *const VtzFile,
     level: u32,
@@ -643,6 +715,7 @@ unsafe fn read(
     buf: *mut std::ffi::c_void,
     buf_bytes: usize,
     threads: u32,
+    band: bool,
 ) -> i32 {
     guard(|| {
         // SAFETY: null or an open handle.
@@ -682,16 +755,21 @@ unsafe fn read(
         opts.threads = threads as usize;
         dec.options(opts);
         let dec = &mut *dec;
+        let out = if band {
+            dec.output_type()
+        } else {
+            vtz::OutputType::Values(f.info.sample_type)
+        };
         let buf = buf as usize;
         vtz::on_threads(threads as usize, || {
             let buf = buf as *mut std::ffi::c_void;
             match t {
-                SampleType::U8 => fill!(dec, buf, n, u8),
-                SampleType::I16 => fill!(dec, buf, n, i16),
-                SampleType::U16 => fill!(dec, buf, n, u16),
-                SampleType::I32 => fill!(dec, buf, n, i32),
-                SampleType::F32 => fill!(dec, buf, n, f32),
-                _ => fill!(dec, buf, n, f64),
+                SampleType::U8 => fill!(dec, buf, n, u8, out),
+                SampleType::I16 => fill!(dec, buf, n, i16, out),
+                SampleType::U16 => fill!(dec, buf, n, u16, out),
+                SampleType::I32 => fill!(dec, buf, n, i32, out),
+                SampleType::F32 => fill!(dec, buf, n, f32, out),
+                _ => fill!(dec, buf, n, f64, out),
             }
         })?
     })
@@ -718,6 +796,9 @@ pub extern "C" fn vtz_encode_options_init() -> VtzEncodeOptions {
         gdal_metadata: std::ptr::null(),
         progress: None,
         progress_data: std::ptr::null_mut(),
+        has_offset_scale: 0,
+        value_offset: 0.0,
+        value_scale: 1.0,
     }
 }
 
@@ -784,7 +865,38 @@ unsafe fn encode_job(
             "nodata {nd} is not a value of the sample type"
         )));
     }
+    // Codes with a band offset and scale: the raster holds their values.
+    let mapping = if o.has_offset_scale != 0 {
+        let m = ValueMapping {
+            offset: o.value_offset,
+            scale: o.value_scale,
+        };
+        if !t.is_integer() {
+            return Err(Error::invalid(
+                "has_offset_scale needs integer codes (a data type VTZ_U8 ... VTZ_I32)",
+            ));
+        }
+        if !(m.scale.is_finite() && m.scale != 0.0 && m.offset.is_finite()) {
+            return Err(Error::invalid(format!(
+                "value_scale {} / value_offset {} is not a usable mapping (a finite scale, not 0, and a finite offset)",
+                m.scale, m.offset
+            )));
+        }
+        Some(m)
+    } else {
+        None
+    };
+    let (values, nodata) = match mapping {
+        Some(m) => (
+            values.into_iter().map(|c| m.to_value(c)).collect(),
+            nodata.map(|c| m.to_value(c)),
+        ),
+        None => (values, nodata),
+    };
     let mut raster = Raster::from_values(width as usize, height as usize, values, nodata, t)?;
+    if let Some(m) = mapping {
+        raster.mapping = m;
+    }
     // SAFETY: null or NUL-terminated (the caller's promise).
     let wkt = unsafe { text(o.crs_wkt, "crs_wkt") }?.filter(|w| !w.is_empty());
     // SAFETY: as above.

@@ -368,6 +368,101 @@ static void test_golden(const char *dir) {
   if (f) vtz_close(f);
 }
 
+/* Integer codes with a value mapping (README, "Output types"): a u16 raster mapped by
+ * -32768 reads as the int16 values it holds (tiled and untiled, windows and overviews); a
+ * scale of 0.1 reads as the codes with the band's offset and scale; a bound is in values. */
+static void test_mapped_codes(void) {
+  enum { MW = 200, MH = 150 };
+  static uint16_t codes[MW * MH];
+  for (int y = 0; y < MH; y++)
+    for (int x = 0; x < MW; x++) /* values -37 .. ~1490 m around code 32768 */
+      codes[y * MW + x] = (uint16_t)(32768 - 37 + lround(760.0 + 760.0 * sin(x * 0.05) * cos(y * 0.04)));
+  for (int tiled = 0; tiled < 2; tiled++) {
+    VtzEncodeOptions o = vtz_encode_options_init();
+    o.has_offset_scale = 1;
+    o.value_offset = -32768.0;
+    o.value_scale = 1.0;
+    o.max_error = 1.0;
+    o.tile = tiled ? 64 : -1;
+    uint8_t *bytes = NULL;
+    size_t len = 0;
+    int rc = vtz_encode(codes, VTZ_U16, MW, MH, &o, &bytes, &len);
+    CHECK(rc == VTZ_OK, "mapped u16 encode (tiled %d): rc %d", tiled, rc);
+    VtzFile *f = NULL;
+    rc = vtz_open_memory(bytes, len, NULL, &f);
+    CHECK(rc == VTZ_OK && f, "mapped open: rc %d", rc);
+    if (!f) {
+      vtz_free_bytes(bytes, len);
+      continue;
+    }
+    VtzInfo info;
+    vtz_get_info(f, &info);
+    CHECK(info.sample_type == VTZ_U16 && info.value_type == VTZ_I16 && info.has_offset_scale == 0,
+          "u16 codes mapped by -32768 read as i16 values: sample type %d, value type %d, offset/scale %d",
+          info.sample_type, info.value_type, info.has_offset_scale);
+    CHECK(info.has_range && info.min < 0, "the range is in values: %g", info.min);
+    static int16_t v[MW * MH], win[40 * 30];
+    rc = vtz_read_band(f, 0, 0, 0, MW, MH, VTZ_I16, v, sizeof v, 0);
+    CHECK(rc == VTZ_OK, "read_band i16 (tiled %d): rc %d", tiled, rc);
+    int worst = 0;
+    for (int i = 0; i < MW * MH; i++) {
+      int e = abs((int)v[i] - ((int)codes[i] - 32768));
+      if (e > worst) worst = e;
+    }
+    CHECK(rc == VTZ_OK && worst <= 1, "values within the bound 1: %d", worst);
+    rc = vtz_read_band(f, 0, 37, 41, 40, 30, VTZ_I16, win, sizeof win, 0);
+    int same = rc == VTZ_OK;
+    for (int y = 0; y < 30 && same; y++)
+      same = memcmp(win + y * 40, v + (41 + y) * MW + 37, 40 * sizeof(int16_t)) == 0;
+    CHECK(same, "a window of the i16 band is its crop (tiled %d): rc %d", tiled, rc);
+    static int16_t ov[((MW + 1) / 2) * ((MH + 1) / 2)];
+    rc = vtz_read_band(f, 1, 0, 0, (MW + 1) / 2, (MH + 1) / 2, VTZ_I16, ov, sizeof ov, 0);
+    CHECK(rc == VTZ_OK, "overview 1 of the i16 band (tiled %d): rc %d", tiled, rc);
+    static uint16_t u[MW * MH];
+    rc = vtz_read(f, 0, 0, MW, MH, VTZ_U16, u, sizeof u, 0);
+    CHECK(rc == VTZ_ERR_INVALID_ARGUMENT, "vtz_read gives values: negative ones do not fit u16: rc %d", rc);
+    vtz_close(f);
+    vtz_free_bytes(bytes, len);
+  }
+  /* Decimetres: the codes with offset -3276.8 and scale 0.1; the bound of 0.5 is in metres. */
+  VtzEncodeOptions o = vtz_encode_options_init();
+  o.has_offset_scale = 1;
+  o.value_offset = -3276.8;
+  o.value_scale = 0.1;
+  o.max_error = 0.5;
+  uint8_t *bytes = NULL;
+  size_t len = 0;
+  int rc = vtz_encode(codes, VTZ_U16, MW, MH, &o, &bytes, &len);
+  CHECK(rc == VTZ_OK, "decimetre encode: rc %d", rc);
+  VtzFile *f = NULL;
+  if (rc == VTZ_OK) rc = vtz_open_memory(bytes, len, NULL, &f);
+  if (f) {
+    VtzInfo info;
+    vtz_get_info(f, &info);
+    CHECK(info.value_type == VTZ_U16 && info.has_offset_scale == 1 && info.value_offset == -3276.8 &&
+              info.value_scale == 0.1 && info.max_error > 0.1 && info.max_error <= 0.5,
+          "decimetre codes: value type %d, offset/scale %d %g %g, max error %g", info.value_type,
+          info.has_offset_scale, info.value_offset, info.value_scale, info.max_error);
+    static uint16_t c[MW * MH];
+    rc = vtz_read_band(f, 0, 0, 0, MW, MH, VTZ_U16, c, sizeof c, 0);
+    double worst = 0;
+    for (int i = 0; i < MW * MH; i++) {
+      double e = fabs(0.1 * ((double)c[i] - codes[i]));
+      if (e > worst) worst = e;
+    }
+    CHECK(rc == VTZ_OK && worst <= 0.5 + 1e-9, "codes within 0.5 m: rc %d, %g m", rc, worst);
+    vtz_close(f);
+  }
+  vtz_free_bytes(bytes, len);
+  o.value_scale = 0.0;
+  rc = vtz_encode(codes, VTZ_U16, MW, MH, &o, &bytes, &len);
+  CHECK(rc == VTZ_ERR_INVALID_ARGUMENT, "a zero scale: rc %d", rc);
+  o.value_scale = 0.1;
+  float fl[4] = {1, 2, 3, 4};
+  rc = vtz_encode(fl, VTZ_F32, 2, 2, &o, &bytes, &len);
+  CHECK(rc == VTZ_ERR_INVALID_ARGUMENT, "an offset and scale over floats: rc %d", rc);
+}
+
 int main(int argc, char **argv) {
   if (argc != 3) {
     fprintf(stderr, "usage: capi_test GOLDEN_DIR TMP_DIR\n");
@@ -377,6 +472,7 @@ int main(int argc, char **argv) {
   test_round_trip_and_windows();
   test_lossless_float_and_tiles(argv[2]);
   test_golden(argv[1]);
+  test_mapped_codes();
   printf("capi_test (vtz %s): %d checks, %d failed\n", vtz_version(), checks, failures);
   return failures ? 1 : 0;
 }

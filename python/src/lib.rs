@@ -235,6 +235,7 @@ fn raster_from(
     py: Python<'_>,
     array: &Bound<'_, PyUntypedArray>,
     nodata: Option<f64>,
+    offset_scale: Option<(f64, f64)>,
 ) -> PyResult<Raster> {
     let (w, h, data, st) = samples(py, array)?;
     // NaN samples are nodata whatever `nodata` says (as in the CLI and GDAL): with another
@@ -249,12 +250,44 @@ fn raster_from(
         ));
     }
     let nodata = nodata.filter(|v| !v.is_nan());
-    Raster::from_values(w, h, data, nodata, st).map_err(|e| to_py(py, e))
+    let Some((offset, scale)) = offset_scale else {
+        return Raster::from_values(w, h, data, nodata, st).map_err(|e| to_py(py, e));
+    };
+    // Integer codes with an offset and scale (GDAL's): the raster holds their values, so a
+    // bound is in values.
+    if !st.is_integer() {
+        return Err(invalid(
+            py,
+            format!(
+                "scale/offset map integer codes; the array is {}",
+                dtype_name(st)
+            ),
+        ));
+    }
+    if !(scale.is_finite() && scale != 0.0 && offset.is_finite()) {
+        return Err(invalid(
+            py,
+            format!(
+                "scale {scale} / offset {offset} is not usable (a finite scale, not 0, and a finite offset)"
+            ),
+        ));
+    }
+    let m = vtz::ValueMapping { scale, offset };
+    let values = data.into_iter().map(|c| m.to_value(c)).collect();
+    let mut r = Raster::from_values(w, h, values, nodata.map(|c| m.to_value(c)), st)
+        .map_err(|e| to_py(py, e))?;
+    r.mapping = m;
+    Ok(r)
+}
+
+/// `(offset, scale)` from the Python side's optional offset and scale (`None` when neither).
+fn offset_scale(offset: Option<f64>, scale: Option<f64>) -> Option<(f64, f64)> {
+    (offset.is_some() || scale.is_some()).then(|| (offset.unwrap_or(0.0), scale.unwrap_or(1.0)))
 }
 
 /// Encode a 2-D array; returns the vtz bytes.
 #[pyfunction]
-#[pyo3(signature = (array, max_error=None, lossless=false, nodata=None, method=None, threads=0, effort=None))]
+#[pyo3(signature = (array, max_error=None, lossless=false, nodata=None, method=None, threads=0, effort=None, offset=None, scale=None))]
 #[allow(clippy::too_many_arguments)]
 fn encode<'py>(
     py: Python<'py>,
@@ -265,9 +298,11 @@ fn encode<'py>(
     method: Option<&str>,
     threads: usize,
     effort: Option<&Bound<'py, PyAny>>,
+    offset: Option<f64>,
+    scale: Option<f64>,
 ) -> PyResult<Bound<'py, PyBytes>> {
     let opts = encode_options(py, max_error, lossless, method, effort, threads)?;
-    let raster = raster_from(py, array, nodata)?;
+    let raster = raster_from(py, array, nodata, offset_scale(offset, scale))?;
     let bytes = py
         .detach(|| vtz::on_threads(threads, || vtz::encode(&raster, &opts)).and_then(|r| r))
         .map_err(|e| to_py(py, e))?;
@@ -297,15 +332,18 @@ fn decode_options(
     Ok(o)
 }
 
-/// A decoded raster as a numpy array of its own dtype (nodata: the nodata value, or NaN).
+/// A decoded raster as a numpy array of its output type ([`vtz::OutputType`], as GDAL's band:
+/// the values in their own dtype or the smallest integer dtype holding them, or the integer
+/// codes when the mapping is an offset and scale); nodata: the nodata value (its code), or NaN.
 fn to_array<'py>(py: Python<'py>, r: Raster) -> PyResult<Bound<'py, PyAny>> {
     let (w, h) = (r.width, r.height);
-    let fill = r.nodata.unwrap_or(f64::NAN);
+    let out = vtz::OutputType::of(r.sample_type, r.mapping, r.nodata);
+    let fill = r.nodata.map_or(f64::NAN, |nd| out.stored(nd));
     let mask = r.mask;
     let data = r.data;
     let value = |i: usize| match &mask {
         Some(m) if !m[i] => fill,
-        _ => data[i],
+        _ => out.stored(data[i]),
     };
     macro_rules! int {
         ($t:ty) => {{
@@ -330,7 +368,7 @@ fn to_array<'py>(py: Python<'py>, r: Raster) -> PyResult<Bound<'py, PyAny>> {
                 .into_any()
         }};
     }
-    Ok(match r.sample_type {
+    Ok(match out.sample_type() {
         SampleType::U8 => int!(u8),
         SampleType::I16 => int!(i16),
         SampleType::U16 => int!(u16),
@@ -403,7 +441,15 @@ fn info<'py>(py: Python<'py>, data: &Bound<'py, PyBytes>) -> PyResult<Bound<'py,
     let d = PyDict::new(py);
     d.set_item("width", fi.width)?;
     d.set_item("height", fi.height)?;
-    d.set_item("dtype", dtype_name(fi.sample_type))?;
+    // What `decode` gives: the output type (GDAL's band), its offset and scale when it holds
+    // codes; the file's own codes' type and mapping beside.
+    let out = vtz::OutputType::of(fi.sample_type, fi.mapping, fi.nodata);
+    d.set_item("dtype", dtype_name(out.sample_type()))?;
+    d.set_item("offset", out.offset_scale().map(|m| m.offset))?;
+    d.set_item("scale", out.offset_scale().map(|m| m.scale))?;
+    d.set_item("codes_dtype", dtype_name(fi.sample_type))?;
+    d.set_item("value_offset", fi.mapping.offset)?;
+    d.set_item("value_scale", fi.mapping.scale)?;
     d.set_item("nodata", fi.nodata)?;
     d.set_item("range", fi.range)?;
     d.set_item("bytes", fi.file_bytes)?;
@@ -458,15 +504,27 @@ fn read<'py>(py: Python<'py>, path: std::path::PathBuf) -> PyResult<Bound<'py, P
         Some(g) => georef_dict(py, g)?.into_any(),
         None => py.None().into_bound(py),
     };
-    let nodata = r.nodata;
+    // As the array holds them: the nodata value's code, and the offset and scale, when the
+    // array holds codes.
+    let out = vtz::OutputType::of(r.sample_type, r.mapping, r.nodata);
+    let nodata = r.nodata.map(|nd| out.stored(nd));
+    let os = out.offset_scale().map(|m| (m.offset, m.scale));
     let arr = to_array(py, r)?;
-    PyTuple::new(py, [arr, georef, nodata.into_pyobject(py)?.into_any()])
+    PyTuple::new(
+        py,
+        [
+            arr,
+            georef,
+            nodata.into_pyobject(py)?.into_any(),
+            os.into_pyobject(py)?.into_any(),
+        ],
+    )
 }
 
 /// Write an array to a raster file (the format from the extension; `.vtz` is encoded with
 /// the bound given). `georef`: `(transform 6-tuple, epsg or None, wkt or None)`.
 #[pyfunction]
-#[pyo3(signature = (path, array, nodata=None, transform=None, epsg=None, wkt=None, max_error=None, lossless=false, method=None, force=true, threads=0, effort=None))]
+#[pyo3(signature = (path, array, nodata=None, transform=None, epsg=None, wkt=None, max_error=None, lossless=false, method=None, force=true, threads=0, effort=None, offset=None, scale=None))]
 #[allow(clippy::too_many_arguments)]
 fn write<'py>(
     py: Python<'py>,
@@ -482,9 +540,11 @@ fn write<'py>(
     force: bool,
     threads: usize,
     effort: Option<&Bound<'py, PyAny>>,
+    offset: Option<f64>,
+    scale: Option<f64>,
 ) -> PyResult<()> {
     let opts = encode_options(py, max_error, lossless, method, effort, threads)?;
-    let mut raster = raster_from(py, array, nodata)?;
+    let mut raster = raster_from(py, array, nodata, offset_scale(offset, scale))?;
     if let Some((a, b, c, d, e, f)) = transform {
         if b != 0.0 || d != 0.0 {
             return Err(to_py(

@@ -2,6 +2,7 @@
 read/write with a profile GDAL reads back, and a clear exception for each kind of bad input."""
 
 import os
+import re
 import shutil
 import subprocess
 import threading
@@ -279,6 +280,8 @@ def test_every_proper_prefix_and_a_flipped_byte_are_corrupt():
         (np.zeros((2, 4, 4), np.int16), vtz.InvalidArgumentError, "3-D"),
         (np.zeros((4, 4), np.complex64), vtz.DtypeError, "complex"),
         (np.zeros((4, 4), np.int64), vtz.DtypeError, "int64"),
+        # 64-bit integers are refused always (vtz has no type that holds every one).
+        (np.full((4, 4), 2**60 + 1, np.uint64), vtz.DtypeError, "uint64"),
         (np.zeros((4, 4), bool), vtz.DtypeError, "bool"),
         (np.zeros(5, np.int16), vtz.InvalidArgumentError, "1-D"),
         (np.zeros((0, 4), np.int16), vtz.InvalidArgumentError, "empty"),
@@ -359,3 +362,35 @@ def test_bytes_are_the_same_for_every_thread_count():
     assert vtz.encode(a, max_error=0.5, threads=1) == vtz.encode(a, max_error=0.5, threads=2)
     b = vtz.encode(a, max_error=0.5)
     assert np.array_equal(vtz.decode(b, threads=1), vtz.decode(b, threads=2))
+
+
+def test_offset_and_scale_map_codes_and_bound_the_values(tmp_path):
+    """Issue 35, items 2, 6 and 11: integer codes with GDAL's offset and scale. The bound is
+    in values (metres); a scale comes back as codes with info's/read's offset and scale; a
+    unit scale with an offset of -32768 over uint16 comes back as int16 values."""
+    codes = terrain(60, 80, np.int16)
+    b = vtz.encode(codes, max_error=25, scale=10.0)
+    i = vtz.info(b)
+    assert (i["dtype"], i["offset"], i["scale"]) == ("int16", 0.0, 10.0)
+    assert (i["codes_dtype"], i["value_scale"]) == ("int16", 10.0)
+    assert 0 < i["max_error"] <= 25
+    back = vtz.decode(b)
+    assert back.dtype == np.int16
+    err = np.abs(10.0 * back.astype(np.float64) - 10.0 * codes.astype(np.float64)).max()
+    assert err <= 25, err  # codes move by up to 2: the bound is on metres
+    out = tmp_path / "s.tif"
+    vtz.write(out, codes, {"scale": 10.0, "offset": -5.0, "nodata": None})
+    a, prof = vtz.read(out)
+    assert (prof["scale"], prof["offset"]) == (10.0, -5.0) and np.array_equal(a, codes)
+    if shutil.which("gdalinfo"):
+        txt = subprocess.run(["gdalinfo", str(out)], capture_output=True, text=True).stdout
+        assert re.search(r"Offset: -5,\s*Scale:10\b", txt), txt
+    else:
+        print("SKIPPED (gdalinfo not found): GDAL's offset and scale of the written GeoTIFF")
+    u = (codes.astype(np.int32) + 32768 - 150).astype(np.uint16)
+    b = vtz.encode(u, offset=-32768)
+    assert vtz.info(b)["dtype"] == "int16" and vtz.info(b)["codes_dtype"] == "uint16"
+    d = vtz.decode(b)
+    assert d.dtype == np.int16 and np.array_equal(d, u.astype(np.int32) - 32768)
+    with pytest.raises(vtz.InvalidArgumentError, match="integer codes"):
+        vtz.encode(codes.astype(np.float32), scale=0.1)

@@ -645,6 +645,23 @@ impl<R: Read + Seek> Decoder<R> {
     /// value (NaN for floats without one). A value the buffer's type cannot hold is an error,
     /// never a silent change.
     pub fn decode_into<T: Sample>(&mut self, out: &mut [T]) -> Result<()> {
+        self.decode_into_as(out, crate::model::OutputType::Values(self.info.sample_type))
+    }
+
+    /// The file's [`OutputType`](crate::model::OutputType) (what GDAL's band holds).
+    pub fn output_type(&self) -> crate::model::OutputType {
+        crate::model::OutputType::of(self.info.sample_type, self.info.mapping, self.info.nodata)
+    }
+
+    /// [`Decoder::decode_into`] as `out_type` stores samples: the values, or (for
+    /// [`OutputType::Codes`](crate::model::OutputType::Codes)) each value's code
+    /// `(value − offset) / scale`, nodata samples the nodata value's code: what a GDAL band
+    /// of the file's [`Decoder::output_type`] holds.
+    pub fn decode_into_as<T: Sample>(
+        &mut self,
+        out: &mut [T],
+        out_type: crate::model::OutputType,
+    ) -> Result<()> {
         let r = self.decode()?;
         if out.len() != r.data.len() {
             return Err(Error::invalid(format!(
@@ -654,6 +671,7 @@ impl<R: Read + Seek> Decoder<R> {
             )));
         }
         for (o, &v) in out.iter_mut().zip(&r.data) {
+            let v = out_type.stored(v);
             *o = T::from_f64(v).ok_or_else(|| {
                 Error::invalid(format!(
                     "the value {v} does not fit the buffer's type {}",

@@ -24,7 +24,7 @@ use crate::model::{DEFAULT_MAX_SAMPLES, Raster, SampleType, ValueMapping};
 pub use geotiff::StreamWriter as GeoTiffWriter;
 pub use output::{OutputFile, PendingFile, remove_temporaries, write_file};
 pub(crate) use output::{track, untrack};
-pub(crate) use pam::without_statistics;
+pub(crate) use pam::{apply_gdal_mapping, with_offset_scale, without_statistics};
 pub use png::PngMapping;
 use std::path::Path;
 

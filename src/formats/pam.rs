@@ -327,29 +327,39 @@ fn parse_gdal_metadata(xml: &str) -> Option<Vec<Item>> {
 /// decode has other statistics, and GDAL would report the stale ones as its own. The rest is
 /// kept byte for byte; a document vtz cannot parse is kept whole.
 pub(crate) fn without_statistics(xml: &str) -> Cow<'_, str> {
+    match drop_items(xml, |attrs, _| {
+        attrs
+            .iter()
+            .any(|(k, v)| *k == "name" && v.starts_with("STATISTICS_"))
+    }) {
+        Some(out) => Cow::Owned(out),
+        None => Cow::Borrowed(xml),
+    }
+}
+
+/// `xml` without the `<Item>`s for which `drop(attributes, text)` holds (each with the white
+/// space that led up to it, its line), the rest byte for byte; `None` when nothing was
+/// dropped or the document cannot be parsed.
+fn drop_items(xml: &str, mut drop: impl FnMut(&[(&str, String)], &str) -> bool) -> Option<String> {
     let mut out = String::with_capacity(xml.len());
     let mut rest = xml;
     let mut changed = false;
     while let Some(i) = rest.find("<Item") {
-        let Some(close) = rest[i..].find('>').map(|c| i + c) else {
-            return Cow::Borrowed(xml);
-        };
+        let close = rest[i..].find('>').map(|c| i + c)?;
         let tag = &rest[i + "<Item".len()..close];
-        let (attrs, end) = match tag.strip_suffix('/') {
-            Some(a) => (a, close + 1),
-            None => match rest[close..].find("</Item>") {
-                Some(e) => (tag, close + e + "</Item>".len()),
-                None => return Cow::Borrowed(xml),
-            },
+        let (attrs, text, end) = match tag.strip_suffix('/') {
+            Some(a) => (a, "", close + 1),
+            None => {
+                let e = rest[close..].find("</Item>")?;
+                (
+                    tag,
+                    &rest[close + 1..close + e],
+                    close + e + "</Item>".len(),
+                )
+            }
         };
-        let Some(attrs) = parse_attrs(attrs) else {
-            return Cow::Borrowed(xml);
-        };
-        let is_stat = attrs
-            .iter()
-            .any(|(k, v)| *k == "name" && v.starts_with("STATISTICS_"));
-        if is_stat {
-            // Drop the item with the white space that led up to it (its line).
+        let attrs = parse_attrs(attrs)?;
+        if drop(&attrs, text) {
             out.push_str(rest[..i].trim_end_matches([' ', '\t', '\r', '\n']));
             changed = true;
         } else {
@@ -358,10 +368,117 @@ pub(crate) fn without_statistics(xml: &str) -> Cow<'_, str> {
         rest = &rest[end..];
     }
     if !changed {
-        return Cow::Borrowed(xml);
+        return None;
     }
     out.push_str(rest);
-    Cow::Owned(out)
+    Some(out)
+}
+
+/// Band 1's offset and scale items (`sample="0"`, `role="offset"` / `role="scale"`) of a
+/// GDAL_METADATA document: the document without them (`None` when it held nothing else)
+/// and their values (offset, scale; `None` when absent or not a number). A document vtz
+/// cannot parse gives itself and no values.
+pub(crate) fn take_offset_scale(xml: &str) -> (Option<String>, Option<f64>, Option<f64>) {
+    let (mut offset, mut scale) = (None, None);
+    let rest = drop_items(xml, |attrs, text| {
+        let band0 = attrs.iter().any(|(k, v)| *k == "sample" && v.trim() == "0");
+        let role = attrs
+            .iter()
+            .find(|(k, _)| *k == "role")
+            .map(|(_, v)| v.as_str());
+        let slot = match (band0, role) {
+            (true, Some("offset")) => &mut offset,
+            (true, Some("scale")) => &mut scale,
+            _ => return false,
+        };
+        let once = unesc(text).unwrap_or_default();
+        let v = unesc(&once).unwrap_or(once);
+        // An item that is not a number stays where it is.
+        match v.trim().parse::<f64>().ok().filter(|x| x.is_finite()) {
+            Some(x) => {
+                *slot = Some(x);
+                true
+            }
+            None => false,
+        }
+    });
+    match rest {
+        None => (Some(xml.to_string()), None, None),
+        Some(r) => {
+            let empty = parse_gdal_metadata(&r).is_some_and(|items| items.is_empty());
+            ((!empty).then_some(r), offset, scale)
+        }
+    }
+}
+
+/// The value mapping a GeoTIFF's GDAL scale and offset (band 1's GDAL_METADATA `SCALE` /
+/// `OFFSET` items) give its integer samples, and the metadata without those items; `None`
+/// when the samples are not integers or the items are absent, the identity or unusable (a
+/// zero scale, values that overflow). GDAL's values are `offset + scale · sample`: vtz's
+/// values are the same, so a bound is in GDAL's units (metres), not the stored codes'.
+pub(crate) fn gdal_mapping(
+    st: crate::model::SampleType,
+    xml: Option<&str>,
+) -> Option<(crate::model::ValueMapping, Option<String>)> {
+    let (lo, hi) = st.int_range()?;
+    let (rest, o, s) = take_offset_scale(xml?);
+    if o.is_none() && s.is_none() {
+        return None;
+    }
+    let m = crate::model::ValueMapping {
+        offset: o.unwrap_or(0.0),
+        scale: s.unwrap_or(1.0),
+    };
+    let usable = m.scale != 0.0 && m.to_value(lo).is_finite() && m.to_value(hi).is_finite();
+    (usable && !m.is_identity()).then_some((m, rest))
+}
+
+/// A raster read from a GeoTIFF of integer codes with a GDAL scale/offset
+/// ([`gdal_mapping`]): its values (and nodata) become `offset + scale · code`, its mapping
+/// that one, its GDAL_METADATA loses the two items (a writer puts them back from the
+/// mapping). Anything else is left as it is.
+pub(crate) fn apply_gdal_mapping(r: &mut crate::model::Raster) {
+    if !r.mapping.is_identity() {
+        return;
+    }
+    let Some((m, rest)) = gdal_mapping(r.sample_type, r.gdal_metadata.as_deref()) else {
+        return;
+    };
+    for v in &mut r.data {
+        *v = m.to_value(*v);
+    }
+    r.nodata = r.nodata.map(|nd| m.to_value(nd));
+    r.mapping = m;
+    r.gdal_metadata = rest;
+}
+
+/// GDAL_METADATA saying band 1's values are `offset + scale · stored sample` for `mapping`
+/// (the codes a GeoTIFF stores): `xml` (or a new document) with its own offset/scale items
+/// applied after `mapping` (as [`aux_xml`] composes them) and replaced by one `OFFSET` and
+/// one `SCALE` item, as GDAL writes them.
+pub(crate) fn with_offset_scale(xml: Option<&str>, mapping: crate::model::ValueMapping) -> String {
+    let (rest, o2, s2) = match xml {
+        Some(x) => take_offset_scale(x),
+        None => (None, None, None),
+    };
+    let (o2, s2) = (o2.unwrap_or(0.0), s2.unwrap_or(1.0));
+    let (offset, scale) = (o2 + s2 * mapping.offset, s2 * mapping.scale);
+    let items = format!(
+        "  <Item name=\"OFFSET\" sample=\"0\" role=\"offset\">{}</Item>\n  \
+         <Item name=\"SCALE\" sample=\"0\" role=\"scale\">{}</Item>\n",
+        num(offset),
+        num(scale)
+    );
+    match rest
+        .as_deref()
+        .and_then(|r| r.rfind("</GDALMetadata>").map(|i| (r, i)))
+    {
+        Some((r, i)) => {
+            let head = r[..i].trim_end_matches([' ', '\t', '\r', '\n']);
+            format!("{head}\n{items}{}", &r[i..])
+        }
+        None => format!("<GDALMetadata>\n{items}</GDALMetadata>"),
+    }
 }
 
 /// `k="v" k2='v2'` pairs.
@@ -418,6 +535,76 @@ pub(crate) fn envi_header(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::{Raster, SampleType, ValueMapping};
+
+    /// A GeoTIFF's GDAL scale/offset over integer codes becomes the value mapping (values
+    /// in GDAL's units), the items leave the metadata, and a writer puts them back.
+    #[test]
+    fn gdal_scale_offset_is_the_value_mapping_and_back() {
+        let xml = "<GDALMetadata>\n  <Item name=\"SCALE\" sample=\"0\" role=\"scale\">10</Item>\n  \
+                   <Item name=\"UNITTYPE\" sample=\"0\" role=\"unittype\">metre</Item>\n  \
+                   <Item name=\"OFFSET\" sample=\"0\" role=\"offset\">-5</Item>\n</GDALMetadata>";
+        let mut r = Raster::from_values(
+            3,
+            1,
+            vec![1.0, -7.0, -32768.0],
+            Some(-32768.0),
+            SampleType::I16,
+        )
+        .unwrap();
+        r.gdal_metadata = Some(xml.into());
+        apply_gdal_mapping(&mut r);
+        assert_eq!(
+            r.mapping,
+            ValueMapping {
+                scale: 10.0,
+                offset: -5.0
+            }
+        );
+        assert_eq!(r.data, vec![5.0, -75.0, -327685.0]);
+        assert_eq!(r.nodata, Some(-327685.0));
+        assert_eq!(r.mask, Some(vec![true, true, false]));
+        let rest = r.gdal_metadata.clone().unwrap();
+        assert!(
+            !rest.contains("role=\"scale\"") && !rest.contains("role=\"offset\""),
+            "{rest}"
+        );
+        assert!(rest.contains("role=\"unittype\">metre</Item>"), "{rest}");
+        let back = with_offset_scale(Some(&rest), r.mapping);
+        let (_, o, s) = take_offset_scale(&back);
+        assert_eq!((o, s), (Some(-5.0), Some(10.0)));
+        // Float samples, and the identity, stay as they are.
+        let mut f = Raster::from_values(1, 1, vec![1.5], None, SampleType::F32).unwrap();
+        f.gdal_metadata = Some(xml.into());
+        apply_gdal_mapping(&mut f);
+        assert!(f.mapping.is_identity() && f.gdal_metadata.as_deref() == Some(xml));
+        let one = "<GDALMetadata><Item name=\"SCALE\" sample=\"0\" role=\"scale\">1</Item></GDALMetadata>";
+        assert!(gdal_mapping(SampleType::I16, Some(one)).is_none());
+        // Only scale/offset items: none are left.
+        let only = "<GDALMetadata>\n  <Item name=\"SCALE\" sample=\"0\" role=\"scale\">0.1</Item>\n</GDALMetadata>";
+        assert_eq!(
+            gdal_mapping(SampleType::U16, Some(only)),
+            Some((
+                ValueMapping {
+                    scale: 0.1,
+                    offset: 0.0
+                },
+                None
+            ))
+        );
+        assert!(
+            with_offset_scale(
+                None,
+                ValueMapping {
+                    scale: 0.1,
+                    offset: 2.0
+                }
+            )
+            .starts_with(
+                "<GDALMetadata>\n  <Item name=\"OFFSET\" sample=\"0\" role=\"offset\">2.0</Item>"
+            )
+        );
+    }
 
     #[test]
     fn envi_header_places_the_raw_samples() {

@@ -179,6 +179,107 @@ impl ValueMapping {
     }
 }
 
+/// How a reader that gives each band one data type (GDAL, a GeoTIFF, QGIS, rasterio)
+/// sees the samples of a sample type under a value mapping. One rule, used by `vtz decode`'s
+/// and `vtz convert`'s GeoTIFFs, `vtz info`, the C ABI (`VtzInfo::value_type`) and the GDAL
+/// plugin:
+///
+/// - the identity mapping, or a float sample type: the values, in the sample type;
+/// - integer codes with scale ±1 and a whole offset: the values, in the smallest of u8, i16,
+///   u16, i32 that holds `offset + scale · c` for every code `c` of the sample type (and the
+///   nodata value): a u16 PNG mapped by −32768 is i16 (GDAL's Int16);
+/// - any other mapping (a scale other than ±1, a fractional offset, or values no such type
+///   holds): the codes, in the sample type, with the mapping as GDAL's band offset and scale
+///   (`GetOffset`/`GetScale`, a GeoTIFF's GDAL_METADATA `OFFSET`/`SCALE` items), so GDAL
+///   readers see the values;
+/// - when even the nodata value is not a code of the sample type: the values as f64.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum OutputType {
+    /// The values themselves, in this type.
+    Values(SampleType),
+    /// The integer codes, in this (the file's) sample type, with this mapping as the band's
+    /// offset and scale (`value = offset + scale · code`).
+    Codes(SampleType, ValueMapping),
+}
+
+impl OutputType {
+    /// The output type of samples of `sample_type` under `mapping`, with the declared nodata
+    /// value `nodata` (a value, not a code).
+    pub fn of(sample_type: SampleType, mapping: ValueMapping, nodata: Option<f64>) -> OutputType {
+        let Some((lo, hi)) = sample_type.int_range() else {
+            return OutputType::Values(sample_type);
+        };
+        if mapping.is_identity() {
+            return OutputType::Values(sample_type);
+        }
+        if mapping.scale.abs() == 1.0 && mapping.offset.fract() == 0.0 {
+            let (a, b) = (mapping.to_value(lo), mapping.to_value(hi));
+            let (vlo, vhi) = (a.min(b), a.max(b));
+            let holds = |t: SampleType| {
+                let (tlo, thi) = t.int_range().expect("an integer type");
+                vlo >= tlo
+                    && vhi <= thi
+                    && nodata.is_none_or(|nd| nd.fract() == 0.0 && nd >= tlo && nd <= thi)
+            };
+            let types = [
+                SampleType::U8,
+                SampleType::I16,
+                SampleType::U16,
+                SampleType::I32,
+            ];
+            if let Some(t) = types.into_iter().find(|&t| holds(t)) {
+                return OutputType::Values(t);
+            }
+        }
+        let nodata_is_code = nodata.is_none_or(|nd| {
+            let c = mapping.to_code(nd).round();
+            c >= lo && c <= hi && mapping.to_value(c) == nd
+        });
+        if nodata_is_code {
+            OutputType::Codes(sample_type, mapping)
+        } else {
+            OutputType::Values(SampleType::F64)
+        }
+    }
+
+    /// The type a reader stores (the values' type, or the codes' type).
+    pub fn sample_type(self) -> SampleType {
+        match self {
+            OutputType::Values(t) | OutputType::Codes(t, _) => t,
+        }
+    }
+
+    /// The band offset and scale a reader applies (`None`: the samples are the values).
+    pub fn offset_scale(self) -> Option<ValueMapping> {
+        match self {
+            OutputType::Values(_) => None,
+            OutputType::Codes(_, m) => Some(m),
+        }
+    }
+
+    /// A value as the reader stores it: itself, or its code (`(v − offset) / scale`,
+    /// rounded to the nearest code; NaN stays NaN).
+    pub fn stored(self, v: f64) -> f64 {
+        match self {
+            OutputType::Values(_) => v,
+            OutputType::Codes(_, m) => m.to_code(v).round(),
+        }
+    }
+
+    /// How `vtz info` names it: `i16`, or `u16 codes, GDAL offset -10 scale 0.1`.
+    pub fn describe(self) -> String {
+        match self {
+            OutputType::Values(t) => t.name().to_string(),
+            OutputType::Codes(t, m) => format!(
+                "{} codes with GDAL offset {} and scale {}",
+                t.name(),
+                m.offset,
+                m.scale
+            ),
+        }
+    }
+}
+
 /// A gridded elevation raster: `width × height` samples, row-major, row 0 = north.
 ///
 /// Invariants (checked by [`Raster::validate`]): `data.len() == width * height`; when
@@ -571,6 +672,63 @@ pub(crate) fn count_true(v: &[bool]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::count_true;
+    use super::{OutputType, SampleType, ValueMapping};
+
+    /// The output type rule, for every sample type and each kind of mapping.
+    #[test]
+    fn output_type_for_every_sample_type_and_mapping() {
+        use SampleType::*;
+        let m = |offset: f64, scale: f64| ValueMapping { scale, offset };
+        let of = |st, mapping, nodata| OutputType::of(st, mapping, nodata);
+        let id = ValueMapping::default();
+        for st in [U8, I16, U16, I32, F32, F64] {
+            assert_eq!(of(st, id, None), OutputType::Values(st));
+        }
+        // Floats are values whatever the mapping says.
+        assert_eq!(of(F32, m(-32768.0, 1.0), None), OutputType::Values(F32));
+        // Integer mappings: the smallest type holding offset + scale * [range] and nodata.
+        assert_eq!(of(U16, m(-32768.0, 1.0), None), OutputType::Values(I16));
+        assert_eq!(
+            of(U16, m(-32768.0, 1.0), Some(-32768.0)),
+            OutputType::Values(I16)
+        );
+        assert_eq!(
+            of(U16, m(-32768.0, 1.0), Some(-99999.0)),
+            OutputType::Values(I32)
+        );
+        assert_eq!(of(U8, m(-128.0, 1.0), None), OutputType::Values(I16));
+        assert_eq!(of(U8, m(100.0, 1.0), None), OutputType::Values(I16));
+        assert_eq!(of(U8, m(0.0, -1.0), None), OutputType::Values(I16));
+        assert_eq!(of(I16, m(32768.0, 1.0), None), OutputType::Values(U16));
+        assert_eq!(of(U16, m(1.0, 1.0), None), OutputType::Values(I32));
+        assert_eq!(of(U16, m(0.0, -1.0), None), OutputType::Values(I32));
+        // No type holds them: the codes with the offset.
+        assert_eq!(
+            of(I32, m(1.0, 1.0), None),
+            OutputType::Codes(I32, m(1.0, 1.0))
+        );
+        // A scale or a fractional offset: the codes.
+        for st in [U8, I16, U16, I32] {
+            assert_eq!(
+                of(st, m(0.0, 10.0), None),
+                OutputType::Codes(st, m(0.0, 10.0))
+            );
+            assert_eq!(
+                of(st, m(0.5, 1.0), None),
+                OutputType::Codes(st, m(0.5, 1.0))
+            );
+            assert_eq!(
+                of(st, m(-10.0, 0.1), Some(-10.0)),
+                OutputType::Codes(st, m(-10.0, 0.1))
+            );
+            // A nodata value that is no code: float values.
+            assert_eq!(of(st, m(0.0, 10.0), Some(5.0)), OutputType::Values(F64));
+        }
+        let c = OutputType::Codes(U16, m(-3276.8, 0.1));
+        assert_eq!(c.stored(-3276.8 + 0.1 * 1234.0), 1234.0);
+        assert!(c.stored(f64::NAN).is_nan());
+        assert_eq!(OutputType::Values(I16).stored(-37.0), -37.0);
+    }
 
     /// Every length around the 255-byte chunks, dense and sparse: the filtered count's result.
     #[test]

@@ -105,6 +105,8 @@ def encode(
     method: Optional[str] = None,
     threads: int = 0,
     effort: Optional[int] = None,
+    offset: Optional[float] = None,
+    scale: Optional[float] = None,
 ) -> bytes:
     """Encode a 2-D array as a vtz stream.
 
@@ -131,6 +133,11 @@ def encode(
         times faster to encode and faster to decode, a few per cent larger); 3-5 its
         range-coded predictors; 6-9 try both and keep the smaller. Other methods ignore it.
         Anything but ``None`` or an integer 1..9 raises :class:`InvalidArgumentError`.
+    offset, scale : float, optional
+        The array holds integer codes whose values are ``offset + scale * code`` (GDAL's band
+        offset and scale, e.g. decimetres as int16 with ``scale=0.1``); ``nodata`` is then a
+        code too. The stream keeps the mapping and ``max_error`` bounds the values (metres),
+        as ``vtz encode`` does for a GeoTIFF with a GDAL scale. Integer dtypes only.
 
     Returns
     -------
@@ -150,7 +157,18 @@ def encode(
         method=method,
         threads=_threads(threads),
         effort=effort,
+        offset=_opt_float(offset, "offset"),
+        scale=_opt_float(scale, "scale"),
     )
+
+
+def _opt_float(v: Any, what: str) -> Optional[float]:
+    if v is None:
+        return None
+    try:
+        return float(v)
+    except (TypeError, ValueError) as e:
+        raise InvalidArgumentError(f"{what} {v!r} is not a number") from e
 
 
 def _threads(threads: Any) -> int:
@@ -177,7 +195,9 @@ def decode(
     threads: int = 0,
     overview: Optional[int] = None,
 ) -> np.ndarray:
-    """Decode a vtz stream into a numpy array of the dtype it was encoded from.
+    """Decode a vtz stream into a numpy array of the dtype it was encoded from (a stream with
+    a value mapping: its values' smallest dtype, or its codes with :func:`info`'s ``offset``
+    and ``scale``, as GDAL reads it; README, "Output types").
 
     Parameters
     ----------
@@ -230,8 +250,11 @@ def decode(
 def info(data: Union[bytes, bytearray, memoryview]) -> dict:
     """What a vtz stream holds, without decoding its samples.
 
-    Returns a dict with ``width``, ``height``, ``dtype``, ``nodata``, ``range`` (min, max of
-    the valid samples), ``max_error`` (the bound every valid sample is within; 0 = lossless; read
+    Returns a dict with ``width``, ``height``, ``dtype`` (what :func:`decode` gives: the
+    values' dtype, or the codes' when ``scale``/``offset`` are not None: the values are
+    ``offset + scale * sample``), ``offset``, ``scale``, ``codes_dtype``, ``value_offset`` and
+    ``value_scale`` (the stream's own codes and mapping), ``nodata`` (a value), ``range``
+    (min, max of the valid values), ``max_error`` (the bound every valid sample is within; 0 = lossless; read
     from the stream without decoding), ``method``, ``sections``, ``tiles``, ``bytes``, ``crs`` and
     ``transform`` (None without georeferencing).
     """
@@ -277,12 +300,17 @@ def read(path: Union[str, os.PathLike]) -> Tuple[np.ndarray, dict]:
     Returns
     -------
     (numpy.ndarray, dict)
-        The samples (2-D, the file's dtype; nodata as the nodata value or NaN) and a
-        rasterio-style profile: ``driver``, ``dtype``, ``width``, ``height``, ``count``,
-        ``crs``, ``transform``, ``nodata``.
+        The samples (2-D; nodata as the nodata value or NaN) and a rasterio-style profile:
+        ``driver``, ``dtype``, ``width``, ``height``, ``count``, ``crs``, ``transform``,
+        ``nodata``. The dtype is GDAL's for the file (README, "Output types"): the values'
+        own, or the smallest integer dtype that holds them (a uint16 PNG read with offset
+        -32768 gives int16); when the values are integer codes with an offset and scale (a
+        GeoTIFF with a GDAL scale), the array holds the codes and the profile also has
+        ``offset`` and ``scale`` (values = offset + scale * array; ``nodata`` is a code), which
+        :func:`write` takes back.
     """
     p = os.fspath(path)
-    array, g, nodata = _vtz.read(p)
+    array, g, nodata, offset_scale = _vtz.read(p)
     profile = {
         "driver": _DRIVERS.get(os.path.splitext(p)[1].lower(), "unknown"),
         "dtype": array.dtype.name,
@@ -293,6 +321,8 @@ def read(path: Union[str, os.PathLike]) -> Tuple[np.ndarray, dict]:
         "transform": _transform(g["transform"]) if g else None,
         "nodata": nodata,
     }
+    if offset_scale is not None:
+        profile["offset"], profile["scale"] = offset_scale
     return array, profile
 
 
@@ -345,7 +375,8 @@ def write(
     (``.tif``, ``.png``, ``.asc``, ``.exr``, ``.f32``) are written exactly. The profile's
     ``crs``, ``transform`` and ``nodata`` (a rasterio profile works as it is) are kept. The
     file is written to a temporary name and renamed into place; ``overwrite=False`` refuses
-    an existing file. ``method`` and ``effort`` are those of :func:`encode`.
+    an existing file. ``method`` and ``effort`` are those of :func:`encode`, and so are the
+    profile's ``offset`` and ``scale`` (integer codes; as :func:`read` gives them).
     """
     a = _check_array(array)
     profile = dict(profile or {})
@@ -363,4 +394,6 @@ def write(
         force=bool(overwrite),
         threads=_threads(threads),
         effort=effort,
+        offset=_opt_float(profile.get("offset"), "offset"),
+        scale=_opt_float(profile.get("scale"), "scale"),
     )

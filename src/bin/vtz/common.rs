@@ -373,3 +373,17 @@ pub fn out(args: std::fmt::Arguments) {
         std::process::exit(1);
     }
 }
+
+/// The samples' type as the output file holds them: a GeoTIFF's is the output type (values
+/// in the smallest type that holds them, or codes with GDAL's offset and scale), any other
+/// format's the raster's own sample type.
+pub fn written_type(r: &vtz::Raster, to: Option<vtz::formats::Format>, path: &Path) -> String {
+    let tif = to
+        .or_else(|| vtz::formats::Format::from_path(path).ok())
+        .is_some_and(|f| f == vtz::formats::Format::GeoTiff);
+    if tif {
+        vtz::OutputType::of(r.sample_type, r.mapping, r.nodata).describe()
+    } else {
+        r.sample_type.name().to_string()
+    }
+}

@@ -53,6 +53,8 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         let mut j = serde_json::to_value(&c).unwrap_or_default();
         j["bits_per_sample"] = serde_json::json!(bps);
         j["vtz_bytes"] = serde_json::json!(bytes);
+        j["value_scale"] = serde_json::json!(ra.mapping.scale);
+        j["value_offset"] = serde_json::json!(ra.mapping.offset);
         outln!("{j}");
         return Ok(());
     }
@@ -62,6 +64,14 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         c.height,
         c.valid
     );
+    if !ra.mapping.is_identity() {
+        outln!(
+            "values      {} + {} * code ({} codes): errors are in values",
+            ra.mapping.offset,
+            ra.mapping.scale,
+            ra.sample_type.name()
+        );
+    }
     outln!(
         "max error   {} ({} % of range {})",
         num(c.max_error),

@@ -39,7 +39,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         a.output.display(),
         raster.width,
         raster.height,
-        raster.sample_type.name()
+        common::written_type(&raster, to, &a.output)
     ));
     Ok(())
 }

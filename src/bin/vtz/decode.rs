@@ -173,7 +173,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             a.output.display(),
             win.width,
             win.height,
-            d.info().sample_type.name()
+            d.output_type().describe()
         ));
         return Ok(());
     }
@@ -195,7 +195,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         a.output.display(),
         raster.width,
         raster.height,
-        raster.sample_type.name()
+        common::written_type(&raster, format, &a.output)
     ));
     Ok(())
 }

@@ -210,6 +210,9 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             "max_error": report.max_error, "max_error_pct": pct,
             "lossless": report.max_error == 0.0,
             "method": report.method.name(),
+            "value_scale": info.mapping.scale, "value_offset": info.mapping.offset,
+            "output_type": crate::info::output_json(
+                vtz::OutputType::of(info.sample_type, info.mapping, info.nodata)),
             "encoded": report.encoded.iter().map(|m| m.name()).collect::<Vec<_>>(),
             "skipped": report.skipped.iter().map(|(m, why)| serde_json::json!({"method": m.name(), "reason": why})).collect::<Vec<_>>(),
             "notes": report.notes,
@@ -243,6 +246,16 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             info.sample_type.bits() as f64 / bps.max(f64::MIN_POSITIVE),
             info.sample_type.name()
         ));
+        if !info.mapping.is_identity() {
+            // A GDAL scale/offset or a PNG's mapping: the bound is on the values.
+            ui.say(format!(
+                "  values = {} + {} * code ({} codes): the max error is in values; GDAL reads {}",
+                info.mapping.offset,
+                info.mapping.scale,
+                info.sample_type.name(),
+                vtz::OutputType::of(info.sample_type, info.mapping, info.nodata).describe()
+            ));
+        }
         if let Some(t) = &info.tiles {
             ui.say(format!(
                 "  {} tiles of {}x{} ({} x {})",

@@ -78,6 +78,7 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
             "file": a.input, "bytes": info.file_bytes, "width": h.width, "height": h.height,
             "samples": samples, "sample_type": h.sample_type.name(),
             "value_scale": h.mapping.scale, "value_offset": h.mapping.offset,
+            "output_type": output_json(dec.output_type()),
             "nodata": h.nodata, "min": h.range.map(|r| r.0), "max": h.range.map(|r| r.1),
             "bits_per_sample": bps, "max_error": max_error.as_ref().ok(),
             "lossless": max_error.as_ref().ok().map(|&m| m == 0.0),
@@ -131,9 +132,15 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
     }
     if !h.mapping.is_identity() {
         outln!(
-            "mapping       value = {} + {} * code",
+            "mapping       value = {} + {} * code ({} codes; range, nodata and max error are \
+             in values)",
             h.mapping.offset,
-            h.mapping.scale
+            h.mapping.scale,
+            h.sample_type.name()
+        );
+        outln!(
+            "values as     {} (GDAL's band, a decoded GeoTIFF)",
+            dec.output_type().describe()
         );
     }
     match h.nodata {
@@ -238,4 +245,15 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// `vtz info --json`'s `output_type`: the type GDAL's band and a decoded GeoTIFF hold, and
+/// the band offset and scale when it holds codes (else null).
+pub(crate) fn output_json(t: vtz::OutputType) -> serde_json::Value {
+    let m = t.offset_scale();
+    serde_json::json!({
+        "type": t.sample_type().name(),
+        "offset": m.map(|m| m.offset),
+        "scale": m.map(|m| m.scale),
+    })
 }

@@ -84,6 +84,8 @@ pub fn read(bytes: &[u8], opts: &ReadOptions) -> Result<Raster> {
     )?;
     raster.georef = georef;
     raster.gdal_metadata = gdal_metadata;
+    // GDAL's scale/offset of integer codes: the values GDAL shows are vtz's values.
+    crate::formats::apply_gdal_mapping(&mut raster);
     Ok(raster)
 }
 

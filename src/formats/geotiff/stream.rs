@@ -33,7 +33,7 @@ use super::{
 };
 use crate::error::{Error, Result};
 use crate::formats::ReadOptions;
-use crate::model::{Georef, Raster, SampleType};
+use crate::model::{Georef, OutputType, Raster, SampleType, ValueMapping};
 use std::fs::File;
 use std::io::{BufReader, Cursor, Read, Seek, SeekFrom, Write};
 use std::path::Path;
@@ -161,7 +161,8 @@ impl StreamReader {
     /// Rows `y0..y0 + rows`, full width, as a [`Raster`] exactly as [`read`](super::read)
     /// gives that part of the image: values as `f64`, nodata and NaN samples invalid (the mask
     /// is `None` when every sample of the band is valid), the file's nodata, sample type and
-    /// GDAL_METADATA (verbatim), identity mapping, and the georef moved to the band's top-left
+    /// GDAL_METADATA (verbatim, except that a GDAL scale/offset of integer samples is the
+    /// value mapping, the values `offset + scale · sample`), and the georef moved to the band's top-left
     /// corner ([`Georef::window`]`(0, y0)`).
     ///
     /// Only the chunks covering these rows are decoded; the last chunk row decoded is kept, so
@@ -209,6 +210,8 @@ impl StreamReader {
         let mut r = Raster::from_values(w, rows, data, self.nodata, self.sample_type)?;
         r.georef = self.georef.as_ref().map(|g| g.window(0, y0));
         r.gdal_metadata = self.gdal_metadata.clone();
+        // As `read`: GDAL's scale/offset of integer codes become the value mapping.
+        crate::formats::apply_gdal_mapping(&mut r);
         Ok(r)
     }
 
@@ -577,10 +580,12 @@ const TILE: usize = 256;
 /// GeoTIFF (BigTIFF when the raw samples are over 3 GiB, as `write` decides),
 /// with the georeferencing tags, GDAL_NODATA and GDAL_METADATA that `write` produces.
 ///
-/// Output sample type: `meta.sample_type`, except that an integer type with a non-identity
-/// value mapping is written as float64. (`write` picks float32 when every value is exact in
-/// float32, which it learns by looking at all values before writing the first; a stream cannot
-/// look ahead, and float64 holds every mapped value exactly.) Integer samples use the
+/// Output sample type: [`OutputType::of`] the sample type, mapping and nodata, as `write`
+/// (values in the sample type or the smallest integer type that holds them, or codes with
+/// GDAL_METADATA's `OFFSET`/`SCALE`), except that where `write` falls back to float values it
+/// writes float64. (`write` picks float32 when every value is exact in float32, which it
+/// learns by looking at all values before writing the first; a stream cannot look ahead, and
+/// float64 holds every mapped value exactly.) Integer samples use the
 /// horizontal predictor, float samples none (as `write`).
 ///
 /// Invalid samples are written as the nodata value; without one, as NaN for floats and, for
@@ -601,6 +606,9 @@ pub struct StreamWriter<W: Write + Seek> {
     big: bool,
     /// The sample type written.
     st: SampleType,
+    /// The mapping whose codes are written (GDAL's offset and scale), when not the values.
+    to_code: Option<ValueMapping>,
+    /// The nodata value as written (a code when `to_code` is set).
     nodata: Option<f64>,
     tags: GeoTags,
     /// The value written for invalid samples of an integer type without a nodata value.
@@ -632,6 +640,8 @@ struct RowCheck {
 #[derive(Clone, Copy)]
 struct RowConv {
     st: SampleType,
+    /// Values become this mapping's codes (rounded) before they are written.
+    to_code: Option<ValueMapping>,
     nodata: Option<f64>,
     int_fill: f64,
     /// Whether a valid sample holding the fill value matters (integers without nodata).
@@ -685,7 +695,7 @@ impl RowConv {
                 let bps = (st.bits() / 8) as usize;
                 for (x, (&v, o)) in vals.iter().zip(out.chunks_exact_mut(bps)).enumerate() {
                     let code = if valid(x) {
-                        let code = v.round();
+                        let code = self.to_code.map_or(v, |m| m.to_code(v)).round();
                         if !(code >= lo && code <= hi) {
                             let msg = format!(
                                 "sample {v} at row {y}, col {x} does not fit in {} ({lo}..={hi})",
@@ -756,18 +766,24 @@ impl<W: Write + Seek> StreamWriter<W> {
         if meta.nodata.is_some_and(f64::is_nan) {
             return Err(Error::invalid("nodata value is NaN"));
         }
-        let st = if meta.sample_type.is_integer() && !meta.mapping.is_identity() {
-            SampleType::F64
-        } else {
-            meta.sample_type
-        };
+        // As `write`, with float64 for the integer rasters `write` writes as float32 or
+        // float64 (a stream cannot look ahead to see whether float32 holds every value).
+        let kind = OutputType::of(meta.sample_type, meta.mapping, meta.nodata);
+        let st = kind.sample_type();
+        let to_code = kind.offset_scale();
         let bytes = u64::from(st.bits() / 8);
         let raw = (width as u64)
             .saturating_mul(height as u64)
             .saturating_mul(bytes);
         let big = big.unwrap_or(raw > BIGTIFF_THRESHOLD);
         let mut tags = geo_tags(meta.georef.as_ref())?;
-        tags.gdal_metadata = meta.gdal_metadata.clone();
+        tags.gdal_metadata = match to_code {
+            Some(m) => Some(crate::formats::with_offset_scale(
+                meta.gdal_metadata.as_deref(),
+                m,
+            )),
+            None => meta.gdal_metadata.clone(),
+        };
         let int_fill = match st.int_range() {
             Some((_, hi)) if matches!(st, SampleType::U8 | SampleType::U16) => hi,
             Some((lo, _)) => lo,
@@ -796,7 +812,8 @@ impl<W: Write + Seek> StreamWriter<W> {
             height,
             big,
             st,
-            nodata: meta.nodata,
+            to_code,
+            nodata: meta.nodata.map(|nd| kind.stored(nd)),
             tags,
             int_fill,
             has_invalid: false,
@@ -858,6 +875,7 @@ impl<W: Write + Seek> StreamWriter<W> {
         let bps = (self.st.bits() / 8) as usize;
         let conv = RowConv {
             st: self.st,
+            to_code: self.to_code,
             nodata: self.nodata,
             int_fill: self.int_fill,
             track_fill: self.nodata.is_none() && self.st.is_integer(),
@@ -1756,11 +1774,12 @@ mod tests {
     }
 
     #[test]
-    fn writer_mapped_integers_are_float64() {
+    fn writer_mapped_integers_follow_the_output_type() {
+        // Scale 0.25: the codes, with GDAL's offset and scale; read back as the mapping.
         let mut r = Raster::from_values(
             3,
             2,
-            vec![0.5, 1.25, -7.0, 0.1, 2.0, 3.0],
+            vec![0.5, 1.25, -7.0, 0.0, 2.0, 3.0],
             None,
             SampleType::U16,
         )
@@ -1770,8 +1789,33 @@ mod tests {
             offset: -10.0,
         };
         let back = read(&stream_write(&r, 1), &opts()).unwrap();
-        assert_eq!(back.sample_type, SampleType::F64);
+        assert_eq!(back.sample_type, SampleType::U16);
+        assert_eq!(back.mapping, r.mapping);
         assert_eq!(back.data, r.data);
+        let striped = read(&super::super::write(&r).unwrap(), &opts()).unwrap();
+        assert_eq!(
+            (striped.sample_type, striped.mapping),
+            (back.sample_type, back.mapping)
+        );
+        // u16 codes mapped by -32768: int16 values, no mapping left.
+        let mut r = Raster::from_values(
+            2,
+            2,
+            vec![-37.0, 1486.0, -32768.0, 0.0],
+            Some(-32768.0),
+            SampleType::U16,
+        )
+        .unwrap();
+        r.mapping = ValueMapping {
+            scale: 1.0,
+            offset: -32768.0,
+        };
+        let back = read(&stream_write(&r, 1), &opts()).unwrap();
+        assert_eq!(back.sample_type, SampleType::I16);
+        assert!(back.mapping.is_identity());
+        assert_eq!(back.data, r.data);
+        assert_eq!(back.nodata, Some(-32768.0));
+        assert_eq!(back.mask, r.mask);
     }
 
     #[test]

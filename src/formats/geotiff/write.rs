@@ -4,7 +4,7 @@ use super::georef::{GeoTags, geo_tags, write_geo_tags};
 use super::tags::enc_err;
 use crate::error::{Error, Result};
 use crate::formats::samples::f32_samples;
-use crate::model::{Raster, SampleType};
+use crate::model::{OutputType, Raster, SampleType, ValueMapping};
 use std::io::Cursor;
 use tiff::encoder::colortype::{
     ColorType, Gray8, Gray16, Gray32Float, Gray64Float, GrayI16, GrayI32,
@@ -25,12 +25,30 @@ pub(super) const BIGTIFF_THRESHOLD: u64 = 3 << 30;
 
 /// Write a raster as a striped, Deflate-compressed single-band GeoTIFF.
 ///
-/// Samples are written in the raster's sample type, except that an integer raster with a
-/// non-identity value mapping is written as float32 (or float64 when float32 would not hold
-/// its values exactly), since a GeoTIFF stores physical values. Integer samples are rounded
-/// to the nearest integer; out-of-range values are an error.
+/// Samples are written as [`OutputType::of`] says: the values in the raster's sample type
+/// (identity mapping), in the smallest integer type that holds them (an integer mapping: a
+/// u16 PNG mapped by −32768 is written as int16), or the codes in the sample type with the
+/// mapping as GDAL_METADATA's `OFFSET`/`SCALE` items (GDAL's band offset and scale); an
+/// integer raster whose nodata value is not a code is written as float32 (or float64 when
+/// float32 would not hold its values exactly). Integer samples are rounded to the nearest
+/// integer; out-of-range values are an error.
 pub fn write(r: &Raster) -> Result<Vec<u8>> {
     r.validate()?;
+    let out = OutputType::of(r.sample_type, r.mapping, r.nodata);
+    if let OutputType::Codes(_, m) = out {
+        // The codes, with the mapping as GDAL's band offset and scale.
+        let mut c = r.clone();
+        for v in &mut c.data {
+            *v = out.stored(*v);
+        }
+        c.nodata = r.nodata.map(|nd| out.stored(nd));
+        c.mapping = ValueMapping::default();
+        c.gdal_metadata = Some(crate::formats::with_offset_scale(
+            r.gdal_metadata.as_deref(),
+            m,
+        ));
+        return write(&c);
+    }
     let too_big = || {
         Error::invalid(format!(
             "raster {}x{} is too large for a TIFF",
@@ -91,10 +109,12 @@ pub fn write(r: &Raster) -> Result<Vec<u8>> {
     }
 }
 
-/// The sample type to write: the raster's own, except float for mapped integer rasters.
+/// The sample type to write the values in: [`OutputType::of`]'s, float32 rather than float64
+/// for an integer raster whose values float32 holds exactly.
 fn output_type(r: &Raster) -> SampleType {
-    if !r.sample_type.is_integer() || r.mapping.is_identity() {
-        return r.sample_type;
+    let st = OutputType::of(r.sample_type, r.mapping, r.nodata).sample_type();
+    if !r.sample_type.is_integer() || st != SampleType::F64 {
+        return st;
     }
     let exact_f32 = |v: f64| f64::from(v as f32) == v;
     let all_f32 = (0..r.len()).all(|i| !r.is_valid(i) || exact_f32(r.data[i]))
@@ -449,17 +469,59 @@ mod tests {
     }
 
     #[test]
-    fn mapped_integer_raster_is_written_as_float() {
+    fn mapped_integer_rasters_follow_the_output_type() {
+        // A scale: the codes, with GDAL_METADATA's OFFSET and SCALE (kept items beside).
         let mut r =
             Raster::from_values(3, 1, vec![0.5, 1.25, -7.0], None, SampleType::U16).unwrap();
         r.mapping = ValueMapping {
             scale: 0.25,
             offset: -10.0,
         };
-        let back = read(&write(&r).unwrap(), &opts()).unwrap();
-        assert_eq!(back.sample_type, SampleType::F32);
+        r.gdal_metadata = Some(
+            "<GDALMetadata>\n  <Item name=\"UNITTYPE\" sample=\"0\" role=\"unittype\">m</Item>\n</GDALMetadata>"
+                .into(),
+        );
+        let tif = write(&r).unwrap();
+        let back = read(&tif, &opts()).unwrap();
+        assert_eq!(back.sample_type, SampleType::U16);
+        assert_eq!(back.mapping, r.mapping);
         assert_eq!(back.data, r.data);
-        r.data[0] = 0.1; // not exact in f32
+        assert_eq!(back.gdal_metadata, r.gdal_metadata);
+        // The items GDAL reads.
+        let xml = crate::formats::with_offset_scale(r.gdal_metadata.as_deref(), r.mapping);
+        assert!(xml.contains("role=\"unittype\">m</Item>"), "{xml}");
+        assert!(
+            xml.contains("<Item name=\"OFFSET\" sample=\"0\" role=\"offset\">-10.0</Item>"),
+            "{xml}"
+        );
+        assert!(
+            xml.contains("<Item name=\"SCALE\" sample=\"0\" role=\"scale\">0.25</Item>"),
+            "{xml}"
+        );
+        // An offset of -32768 over u16 codes: int16 values.
+        let mut r =
+            Raster::from_values(3, 1, vec![-37.0, 1486.0, 0.0], None, SampleType::U16).unwrap();
+        r.mapping = ValueMapping {
+            scale: 1.0,
+            offset: -32768.0,
+        };
+        let back = read(&write(&r).unwrap(), &opts()).unwrap();
+        assert_eq!(back.sample_type, SampleType::I16);
+        assert!(back.mapping.is_identity());
+        assert_eq!(back.data, r.data);
+        // A nodata value that is not a code: float values (float32 when exact).
+        let mut r = Raster::from_values(
+            3,
+            1,
+            vec![0.5, 1.25, -9999.1],
+            Some(-9999.1),
+            SampleType::U16,
+        )
+        .unwrap();
+        r.mapping = ValueMapping {
+            scale: 0.25,
+            offset: -10.0,
+        };
         let back = read(&write(&r).unwrap(), &opts()).unwrap();
         assert_eq!(back.sample_type, SampleType::F64);
         assert_eq!(back.data, r.data);
