@@ -687,3 +687,45 @@ fn one_name_per_thing() {
     assert!(e.contains("is a directory"), "{e}");
     assert_eq!(e.lines().count(), 1, "{e}");
 }
+
+/// The README's GIS commands run without root (no `sudo`: GDAL_DRIVER_PATH finds the
+/// plugin) and write their outputs in a temporary directory, never in the checkout.
+#[test]
+fn the_readme_gis_commands_need_no_root_and_leave_the_checkout_clean() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    let blocks: Vec<&str> = readme
+        .split("```sh")
+        .skip(1)
+        .filter_map(|b| b.split("```").next())
+        .collect();
+    let commands: Vec<&str> = blocks
+        .iter()
+        .flat_map(|b| b.lines())
+        .filter(|l| !l.trim_start().starts_with('#'))
+        .collect();
+    assert!(
+        !commands.iter().any(|l| l.contains("sudo ")),
+        "{commands:#?}"
+    );
+    let gis = commands
+        .iter()
+        .find(|l| l.contains("gdal_translate"))
+        .expect("the README's GDAL commands");
+    assert!(gis.contains("t=$(mktemp -d)"), "{gis}");
+    for out in ["kauai.tif", "kauai_gdal.vtz", "window.tif"] {
+        assert!(gis.contains(out), "{out}: {gis}");
+        // Every mention of the output is inside the temporary directory.
+        assert_eq!(
+            gis.matches(out).count(),
+            gis.matches(&format!("$t/{out}")).count(),
+            "{out} written outside $t: {gis}"
+        );
+    }
+    assert!(
+        commands
+            .iter()
+            .any(|l| l.contains("export GDAL_DRIVER_PATH=$PWD/target/gdal-plugin")),
+        "{commands:#?}"
+    );
+}
