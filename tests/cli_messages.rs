@@ -341,3 +341,391 @@ fn the_readme_venv_is_ignored() {
         ".gitignore does not ignore .venv/"
     );
 }
+
+/// Every progress report of a run, checked: it starts at 0, never falls, ends at 1, and
+/// has at least `moves` values strictly between (the bar moves while the work runs).
+fn check_progress(what: &str, seen: &[f64], moves: usize) {
+    assert_eq!(seen.first(), Some(&0.0), "{what}: {seen:?}");
+    assert_eq!(seen.last(), Some(&1.0), "{what}: {seen:?}");
+    assert!(
+        seen.windows(2).all(|w| w[1] >= w[0]),
+        "{what}: falls: {seen:?}"
+    );
+    let inner = seen.iter().filter(|&&f| f > 0.0 && f < 1.0).count();
+    assert!(
+        inner >= moves,
+        "{what}: {inner} reports between 0 and 1, want {moves}: {seen:?}"
+    );
+}
+
+/// An untiled decode reports the end of its method's decode before the end of the whole
+/// (it sat at 0 % until the end); with a scale, the resampling reports its rows as they are
+/// done (it reported nothing), on one thread and on several.
+#[test]
+fn untiled_decode_progress_moves_to_the_end() {
+    use std::sync::Mutex;
+    let src = common::terrain(common::Kind::Fbm, 300, 200, 7, true, vtz::SampleType::I16);
+    for m in [vtz::Method::RESIDUAL, vtz::Method::GRID] {
+        let bytes = vtz::encode(
+            &src,
+            &common::encode_opts(&[m], Some(vtz::ErrorBound::Abs(1.0))),
+        )
+        .unwrap();
+        for threads in [1, 2] {
+            for scale in [None, Some("2"), Some("1/3")] {
+                let seen = Mutex::new(Vec::new());
+                let mut d = vtz::Decoder::new(std::io::Cursor::new(&bytes)).unwrap();
+                let opts = common::decode_opts(|o| {
+                    o.threads = threads;
+                    o.scale = scale.map(|s| s.parse().unwrap());
+                });
+                let r = d
+                    .options(opts)
+                    .decode_progress(&|f| seen.lock().unwrap().push(f))
+                    .unwrap();
+                let seen = seen.into_inner().unwrap();
+                let what = format!("{m} threads {threads} scale {scale:?}");
+                // The method's end; with a scale also one report per resampled row (a
+                // small output: every row).
+                let moves = if scale.is_some() { r.height / 2 } else { 1 };
+                check_progress(&what, &seen, moves);
+            }
+        }
+    }
+}
+
+/// A tiled encode reports each tile's encode as the tile finishes (before it is written:
+/// the first report above 0 comes while the output holds no tile yet) and each tile's
+/// write, then the end: 2 × tiles + 1 steps, on one thread and on two (it reported each
+/// group of 8 or 16 tiles only once the whole group was done and written).
+#[test]
+fn tiled_encode_progress_reports_each_tile() {
+    use std::cell::RefCell;
+    use std::io::{Cursor, Seek, SeekFrom, Write};
+    use std::rc::Rc;
+    /// A file in memory whose length the test reads while the encoder writes it.
+    struct Shared(Rc<RefCell<Cursor<Vec<u8>>>>);
+    impl Write for Shared {
+        fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+            self.0.borrow_mut().write(b)
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+    impl Seek for Shared {
+        fn seek(&mut self, p: SeekFrom) -> std::io::Result<u64> {
+            self.0.borrow_mut().seek(p)
+        }
+    }
+    let mut src = common::terrain(common::Kind::Fbm, 256, 256, 3, false, vtz::SampleType::I16);
+    for threads in [1, 2] {
+        let mut opts = common::encode_opts(&[], Some(vtz::ErrorBound::Abs(1.0)));
+        opts.tile = Some(64);
+        opts.threads = threads;
+        let file = Rc::new(RefCell::new(Cursor::new(Vec::new())));
+        let mut seen: Vec<(f64, usize)> = Vec::new();
+        vtz::encode_stream(&mut src, &opts, Shared(file.clone()), &mut |f| {
+            seen.push((f, file.borrow().get_ref().len()))
+        })
+        .unwrap();
+        let fractions: Vec<f64> = seen.iter().map(|s| s.0).collect();
+        let what = format!("threads {threads}");
+        check_progress(&what, &fractions, 2 * 16);
+        let header = seen[0].1;
+        let first = seen.iter().find(|s| s.0 > 0.0).unwrap();
+        assert_eq!(
+            first.1, header,
+            "{what}: the first tile's encode was reported only after a tile was written: {seen:?}"
+        );
+        let bytes = file.borrow().get_ref().clone();
+        let info = vtz::info(&bytes, Default::default()).unwrap();
+        assert_eq!(info.tiles.unwrap().tiles.len(), 16, "{what}");
+    }
+}
+
+/// Every clap usage error is one line on stderr, exit 2, ending with where the help is;
+/// a negative number is taken as an option's value and then checked ("must be ≥ 0").
+#[test]
+fn usage_errors_are_one_line() {
+    let d = tempfile::tempdir().unwrap();
+    let src = corpus("scape_crater.png");
+    let out = tmp(&d, "x.vtz");
+    let y = tmp(&d, "y.tif");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["encode", &src, "-o", &out, "--max-error", "1", "--lossless"],
+            "cannot be used with",
+        ),
+        (
+            vec!["encode", &src, "-o", &out, "--effort", "0"],
+            "0 is not in 1..=9",
+        ),
+        (
+            vec!["encode", &src, "-o", &out, "--max-error", "-1"],
+            "--max-error must be a finite number ≥ 0",
+        ),
+        (
+            vec!["encode", &src, "-o", &out, "--rmse", "-0.5"],
+            "--rmse must be a finite number ≥ 0",
+        ),
+        (
+            vec!["encode", &src, "-o", &out, "--tile", "-1"],
+            "--tile must be ≥ 0, not -1",
+        ),
+        (
+            vec!["decode", &out, "-o", &y, "--threads", "-2"],
+            "--threads must be ≥ 0, not -2",
+        ),
+        (
+            vec!["encode", &src, "-o", &out, "--max-eror", "1"],
+            "unexpected argument '--max-eror'",
+        ),
+        (vec!["encode"], "required arguments were not provided"),
+        (
+            vec!["decode", &out, "-o", &y, "--surface", "x"],
+            "[possible values: sibson, linear, basis]",
+        ),
+        (vec!["frobnicate"], "unrecognized subcommand"),
+    ];
+    for (args, want) in cases {
+        let o = vtz(&args);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+        assert_eq!(e.lines().count(), 1, "{args:?}: not one line:\n{e}");
+        assert!(e.starts_with("vtz: "), "{args:?}: {e}");
+        assert!(e.contains(want), "{args:?}: wants {want:?}: {e}");
+        if !want.contains("must be a finite number") {
+            // clap's errors point to the command's help (the bound's own check does not).
+            assert!(e.trim_end().ends_with("--help)"), "{args:?}: {e}");
+        }
+        assert!(
+            !e.contains("-- -"),
+            "{args:?}: a tip that does not work: {e}"
+        );
+    }
+    // The help pointer names the subcommand.
+    let o = vtz(["encode", &src, "--effort", "0"]);
+    assert!(
+        stderr(&o).contains("(see vtz encode --help)"),
+        "{}",
+        stderr(&o)
+    );
+    // Negative values that are valid stay valid; help and version still print, exit 0.
+    let o = vtz([
+        "encode",
+        &src,
+        "-o",
+        &out,
+        "--png-offset",
+        "-100",
+        "--max-error",
+        "2",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for args in [vec!["--version"], vec!["encode", "--help"]] {
+        let o = vtz(&args);
+        assert_eq!(o.status.code(), Some(0), "{args:?}");
+        assert!(!o.stdout.is_empty(), "{args:?}");
+    }
+}
+
+/// One name per thing: the Sibson method is `sibson` wherever vtz names a method (`info`'s
+/// sections and tiles, `verify`, GDAL's option list), `sites` (the spec's section type)
+/// still accepted; `decode --help` lists every method for --section; `encode --help` says
+/// what the tiles' 1024 counts; plain `info` names the residual coding; counts agree with
+/// their nouns; `info`'s columns line up; the write-only options are where writing is.
+#[test]
+fn one_name_per_thing() {
+    let d = tempfile::tempdir().unwrap();
+    let src = corpus("srtm3_N22W160_kauai.hgt");
+    let sib = tmp(&d, "sib.vtz");
+    let o = vtz([
+        "encode",
+        &src,
+        "-o",
+        &sib,
+        "--method",
+        "sibson,grid",
+        "--max-error",
+        "20",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&vtz(["info", &sib]).stdout).into_owned();
+    assert!(text.contains("] sibson "), "{text}");
+    assert!(!text.contains("] sites "), "{text}");
+    let j = json(&vtz(["info", &sib, "--json"]));
+    let methods: Vec<&str> = j["sections"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|s| s["method"].as_str())
+        .collect();
+    assert!(
+        methods.contains(&"sibson") && methods.contains(&"grid"),
+        "{j}"
+    );
+    // `sites`, the section type's name, is an alias: decode --section sites works.
+    let o = vtz([
+        "decode",
+        &sib,
+        "-o",
+        &tmp(&d, "s.tif"),
+        "--section",
+        "sites",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v = String::from_utf8_lossy(&vtz(["verify", &sib]).stdout).into_owned();
+    assert!(v.contains("sibson ≤") && !v.contains("sites ≤"), "{v}");
+    assert!(v.contains(" sections:"), "{v}");
+    // GDAL's creation option list spells the method as --method does.
+    let cpp = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("capi/gdal/vtzdataset.cpp"),
+    )
+    .unwrap();
+    let list = &cpp[cpp.find("name='METHOD'").unwrap()..][..200];
+    assert!(list.contains("sibson") && !list.contains("sites"), "{list}");
+    // decode --help: --section lists every method.
+    let help = String::from_utf8_lossy(&vtz(["decode", "--help"]).stdout).into_owned();
+    let section = &help[help.find("--section").unwrap()..];
+    let section = &section[..section.find("\n  -").unwrap_or(section.len())];
+    for m in vtz::Method::all() {
+        assert!(
+            section.contains(m.name()),
+            "--section leaves {} out:\n{section}",
+            m.name()
+        );
+    }
+    // encode --help: the default tile size says what it counts.
+    let help = String::from_utf8_lossy(&vtz(["encode", "--help"]).stdout).into_owned();
+    let tile = &help[help.find("--tile").unwrap()..];
+    let tile = &tile[..tile.find("\n  -").unwrap_or(tile.len())];
+    assert!(tile.contains("1024 × 1024 samples"), "{tile}");
+    // compare --help: no writing options; decode and convert keep them.
+    let help = String::from_utf8_lossy(&vtz(["compare", "--help"]).stdout).into_owned();
+    assert!(
+        !help.contains("--round") && !help.contains("--drop-georef"),
+        "{help}"
+    );
+    let o = vtz(["compare", &src, &src, "--round"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    for cmd in ["decode", "convert"] {
+        let help = String::from_utf8_lossy(&vtz([cmd, "--help"]).stdout).into_owned();
+        assert!(
+            help.contains("--round") && help.contains("--drop-georef"),
+            "{cmd}"
+        );
+    }
+    // Plain info names the residual coding (text and JSON), as --stats does.
+    let res = tmp(&d, "res.vtz");
+    let o = vtz([
+        "encode",
+        &src,
+        "-o",
+        &res,
+        "--method",
+        "residual",
+        "--max-error",
+        "1",
+        "--effort",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let plain = String::from_utf8_lossy(&vtz(["info", &res]).stdout).into_owned();
+    let stats = String::from_utf8_lossy(&vtz(["info", &res, "--stats"]).stdout).into_owned();
+    let line = stats
+        .lines()
+        .find(|l| l.starts_with("residual "))
+        .unwrap_or_else(|| panic!("no residual line in --stats: {stats}"));
+    assert!(plain.contains(line), "plain info lacks {line:?}:\n{plain}");
+    let j = json(&vtz(["info", &res, "--json"]));
+    assert!(j["residual"].is_object(), "{}", j["residual"]);
+    // Counts agree with their nouns; one column for section names, gdal-metadata included.
+    let mut r = common::terrain(common::Kind::Fbm, 120, 80, 5, true, vtz::SampleType::I16);
+    r.gdal_metadata = Some("<GDALMetadata><Item name=\"UNITS\">m</Item></GDALMetadata>".into());
+    let one = tmp(&d, "one.vtz");
+    std::fs::write(
+        &one,
+        vtz::encode(&r, &common::encode_opts(&[], None)).unwrap(),
+    )
+    .unwrap();
+    let v = String::from_utf8_lossy(&vtz(["verify", &one]).stdout).into_owned();
+    assert!(
+        v.contains(" sections:") && !v.contains("(1 sections"),
+        "{v}"
+    );
+    let text = String::from_utf8_lossy(&vtz(["info", &one]).stdout).into_owned();
+    let rows: Vec<&str> = text.lines().filter(|l| l.starts_with("  [")).collect();
+    assert!(rows.iter().any(|l| l.contains("gdal-metadata")), "{text}");
+    let col = |l: &str| l.find(" bytes").unwrap();
+    assert!(rows.iter().all(|l| col(l) == col(rows[0])), "{text}");
+    // A tiled file's window of one tile: "1 tile", not "1 tiles".
+    let wide = common::terrain(common::Kind::Fbm, 300, 40, 1, false, vtz::SampleType::I16);
+    let mut opts = common::encode_opts(&[], Some(vtz::ErrorBound::Abs(1.0)));
+    opts.tile = Some(64);
+    let t = tmp(&d, "t.vtz");
+    std::fs::write(&t, vtz::encode(&wide, &opts).unwrap()).unwrap();
+    let o = vtz([
+        "decode",
+        &t,
+        "-o",
+        &tmp(&d, "t.tif"),
+        "--window",
+        "0,0,10,10",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("(1 tile,"), "{}", stderr(&o));
+    // encode of a directory says so, not "an empty extension".
+    let o = vtz([
+        "encode",
+        d.path().to_str().unwrap(),
+        "-o",
+        &tmp(&d, "dir.vtz"),
+    ]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("is a directory"), "{e}");
+    assert_eq!(e.lines().count(), 1, "{e}");
+}
+
+/// The README's GIS commands run without root (no `sudo`: GDAL_DRIVER_PATH finds the
+/// plugin) and write their outputs in a temporary directory, never in the checkout.
+#[test]
+fn the_readme_gis_commands_need_no_root_and_leave_the_checkout_clean() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    let blocks: Vec<&str> = readme
+        .split("```sh")
+        .skip(1)
+        .filter_map(|b| b.split("```").next())
+        .collect();
+    let commands: Vec<&str> = blocks
+        .iter()
+        .flat_map(|b| b.lines())
+        .filter(|l| !l.trim_start().starts_with('#'))
+        .collect();
+    assert!(
+        !commands.iter().any(|l| l.contains("sudo ")),
+        "{commands:#?}"
+    );
+    let gis = commands
+        .iter()
+        .find(|l| l.contains("gdal_translate"))
+        .expect("the README's GDAL commands");
+    assert!(gis.contains("t=$(mktemp -d)"), "{gis}");
+    for out in ["kauai.tif", "kauai_gdal.vtz", "window.tif"] {
+        assert!(gis.contains(out), "{out}: {gis}");
+        // Every mention of the output is inside the temporary directory.
+        assert_eq!(
+            gis.matches(out).count(),
+            gis.matches(&format!("$t/{out}")).count(),
+            "{out} written outside $t: {gis}"
+        );
+    }
+    assert!(
+        commands
+            .iter()
+            .any(|l| l.contains("export GDAL_DRIVER_PATH=$PWD/target/gdal-plugin")),
+        "{commands:#?}"
+    );
+}

@@ -1565,7 +1565,7 @@ void GDALRegister_VTZ()
         "  <Option name='LOSSLESS' type='boolean' description='Store every sample "
         "exactly (the default when MAX_Z_ERROR is absent)'/>"
         "  <Option name='METHOD' type='string' description='best, residual, "
-        "sites, grid, haar, fis, or a comma list' default='best'/>"
+        "sibson, grid, haar, fis, or a comma list' default='best'/>"
         "  <Option name='EFFORT' type='int' min='1' max='9' description='Encoder "
         "effort' default='5'/>"
         "  <Option name='TILE' type='string' description='Tile side in samples "

@@ -306,6 +306,20 @@ def test_nan_with_another_nodata_is_nodata():
     assert np.abs(d[ok] - a[ok]).max() <= 0.5
 
 
+def test_the_readmes_say_one_nan_rule():
+    """The rule above is written once, in the top-level README; python/README.md points to
+    it and says nothing else (it said such an array raises)."""
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    with open(os.path.join(root, "README.md"), encoding="utf-8") as f:
+        top = " ".join(f.read().split())
+    with open(os.path.join(root, "python", "README.md"), encoding="utf-8") as f:
+        py = " ".join(f.read().split())
+    assert "NaN samples of a float raster are nodata whatever its nodata value says" in top
+    assert "with nodata −9999 they decode as −9999" in top
+    assert "by the top-level [README](../README.md)'s rule" in py
+    assert "is an error (ambiguous)" not in py and "raises" not in py.split("`nodata`:")[1][:300]
+
+
 def test_bad_arguments_raise_clear_errors(tmp_path):
     a = terrain(8, 8, np.float32)
     with pytest.raises(vtz.InvalidArgumentError, match="exclude"):

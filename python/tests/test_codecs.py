@@ -214,9 +214,14 @@ def test_numcodecs_shapes():
     # leading axes of size 1 are dropped
     cube = terrain(rng, (12, 13), "uint16").reshape(1, 1, 12, 13)
     check_decoded(cube[0, 0], codec.decode(codec.encode(cube)), 1)
-    # non-contiguous and big-endian input are converted, not refused
+    # a Fortran-ordered chunk is coded as the buffer holds it (its transpose), a strided
+    # view row by row, big-endian input converted: none refused
     t = terrain(rng, (16, 24), "float32").T
-    check_decoded(t, codec.decode(codec.encode(t)), 1)
+    check_decoded(t.T, codec.decode(codec.encode(t)), 1)
+    check_decoded(t, codec.decode(codec.encode(t), out=np.empty_like(t)), 1)
+    v = terrain(rng, (32, 48), "float32")[::2, ::3]
+    assert not (v.flags.c_contiguous or v.flags.f_contiguous)
+    check_decoded(v, codec.decode(codec.encode(v)), 1)
     be = terrain(rng, (10, 11), "int32").astype(">i4")
     check_decoded(be.astype("int32"), codec.decode(codec.encode(be)), 1)
     # a genuine 3-D chunk is refused with a message that says why
@@ -224,6 +229,98 @@ def test_numcodecs_shapes():
         codec.encode(np.zeros((2, 8, 8), "int16"))
     with pytest.raises(vtz.InvalidArgumentError, match="0-D"):
         codec.encode(np.int16(3))
+
+
+def layouts(a):
+    """``a`` as the layouts numcodecs' callers can hand a codec: C-ordered, Fortran-ordered,
+    and a strided view (neither), each holding the same values."""
+    big = np.zeros((a.shape[0] * 2, a.shape[1] * 3), dtype=a.dtype)
+    strided = big[::2, 1::3]
+    strided[...] = a
+    assert not (strided.flags.c_contiguous or strided.flags.f_contiguous)
+    return {"C": np.ascontiguousarray(a), "F": np.asfortranarray(a), "strided": strided}
+
+
+def out_buffers(a):
+    """Empty ``out`` buffers of ``a``'s shape and dtype in each layout of :func:`layouts`."""
+    return {k: np.zeros_like(v) if k != "strided" else layouts(np.zeros_like(a))[k]
+            for k, v in layouts(a).items()}
+
+
+@pytest.mark.parametrize("dtype", ["float32", "int16"])
+def test_numcodecs_follows_memory_order_as_zlib(dtype):
+    """numcodecs' contract: a codec codes the samples in the order the buffer holds them and
+    decodes into ``out`` in ``out``'s order. Lossless, vtz gives what ``Zlib`` gives for
+    every C/F input and C/F/strided ``out`` (Zlib refuses strided input; vtz codes it row by
+    row), directly and through ``ndarray_copy`` (zarr-python 2's path)."""
+    from numcodecs.compat import ndarray_copy
+
+    a = terrain(np.random.default_rng(7), (24, 37), dtype, amplitude=3000.0, noise=2.0)
+    vc, zl = Vtz(lossless=True), numcodecs.Zlib()
+    for kin, x in layouts(a).items():
+        enc = vc.encode(x)
+        for kout, y in out_buffers(a).items():
+            got = vc.decode(enc, out=y)
+            assert got is y
+            via_copy = ndarray_copy(vc.decode(enc), np.zeros_like(y) if kout != "strided"
+                                    else out_buffers(a)["strided"])
+            if kin == "strided":
+                # Zlib takes no strided input; vtz codes it row by row, as C order
+                want = ndarray_copy(zl.decode(zl.encode(x.copy())), np.zeros_like(y))
+            else:
+                want = ndarray_copy(zl.decode(zl.encode(x)), np.zeros_like(y))
+            np.testing.assert_array_equal(y, want, err_msg=f"{kin} in, {kout} out")
+            np.testing.assert_array_equal(via_copy, want, err_msg=f"{kin} in, {kout} via copy")
+        # same layout in and out: the chunk itself
+        same = out_buffers(a)["F" if kin == "F" else "C"]
+        check_decoded(a, vc.decode(enc, out=same), None)
+
+
+@pytest.mark.parametrize("dtype", ["float32", "int16"])
+@pytest.mark.parametrize("order", ["C", "F"])
+def test_numcodecs_lossy_into_out_of_the_same_order(dtype, order):
+    """A lossy chunk decodes within the bound into an ``out`` of its own layout (zarr-python
+    2 decodes a chunk straight into the array's memory), and into a flat buffer as
+    ``ndarray_copy`` reshapes it; the no-``out`` decode holds the buffer's order."""
+    from numcodecs.compat import ndarray_copy
+
+    a = terrain(np.random.default_rng(8), (40, 29), dtype, amplitude=5000.0, noise=3.0)
+    x = np.asarray(a, order=order)
+    bound = 2.0
+    codec = Vtz(max_error=bound)
+    enc = codec.encode(x)
+    check_decoded(a, codec.decode(enc, out=np.empty_like(x)), bound)
+    flat = codec.decode(enc, out=np.empty(a.size, a.dtype))
+    check_decoded(a, flat.reshape(a.shape, order=order), bound)
+    back = codec.decode(enc)
+    check_decoded(a if order == "C" else a.T, back, bound)
+    check_decoded(a, ndarray_copy(back, np.empty_like(x)), bound)
+
+
+def test_numcodecs_out_is_checked():
+    """``out`` of another dtype, size, or read-only is refused (never a reinterpretation of
+    the samples' bits, as ``ndarray_copy``'s ``view`` would do); a byte buffer of the
+    chunk's size gets its native bytes; another byte order is converted."""
+    a = terrain(np.random.default_rng(9), (12, 10), "int16")
+    codec = Vtz(lossless=True)
+    enc = codec.encode(a)
+    with pytest.raises(vtz.InvalidArgumentError, match="dtype float32.*int16"):
+        codec.decode(enc, out=np.empty((6, 10), "float32"))
+    with pytest.raises(vtz.InvalidArgumentError, match="dtype int8"):
+        codec.decode(enc, out=np.empty(240, "int8"))
+    with pytest.raises(vtz.InvalidArgumentError, match="holds 121 samples.*120"):
+        codec.decode(enc, out=np.empty(121, "int16"))
+    ro = np.empty(120, "int16")
+    ro.flags.writeable = False
+    with pytest.raises(vtz.InvalidArgumentError, match="read-only"):
+        codec.decode(enc, out=ro)
+    raw = bytearray(a.nbytes)
+    assert codec.decode(enc, out=raw) is raw and bytes(raw) == a.tobytes()
+    with pytest.raises(vtz.InvalidArgumentError, match="holds 239 bytes"):
+        codec.decode(enc, out=bytearray(239))
+    be = np.empty((12, 10), ">i2")
+    codec.decode(enc, out=be)
+    np.testing.assert_array_equal(be, a)
 
 
 @pytest.mark.parametrize("dtype", ["int8", "bool", "complex64", "float16", "int64", "uint32"])
@@ -650,6 +747,66 @@ def test_zarr_format2_numcodecs(tmp_path, where):
     with pytest.raises(vtz.CorruptError):
         z[40:50, 45:50]
     check_decoded(a[:32], z[:32], 0.5)
+
+
+@pytest.mark.parametrize("dtype", ["float32", "int16"])
+@pytest.mark.parametrize("lossless", [True, False])
+@pytest.mark.parametrize("where", ["compressor", "filter"])
+@pytest.mark.parametrize("chunks", [(32, 40), (32, 32)])
+def test_zarr_format2_fortran_order(tmp_path, dtype, lossless, where, chunks):
+    """A Zarr format 2 array with ``order="F"`` reads back as written (zarr hands the codec
+    Fortran-ordered chunks and reshapes their decode in that order), as with ``Zlib``;
+    square chunks too (the decoded shape then matches the chunk's)."""
+    rng = np.random.default_rng(31)
+    a = terrain(rng, (100, 90), dtype, amplitude=6000.0, noise=5.0)
+    bound = None if lossless else 3.0
+    codec = Vtz(lossless=True) if lossless else Vtz(max_error=bound)
+    kw = {"compressors": codec, "filters": None} if where == "compressor" else {
+        "compressors": None, "filters": [codec]}
+    fill = np.nan if dtype == "float32" else 0
+    for order in ("F", "C"):
+        path = tmp_path / f"{order}.zarr"
+        z = zarr.create_array(zarr.storage.LocalStore(path), shape=a.shape, chunks=chunks,
+                              dtype=a.dtype, zarr_format=2, order=order, fill_value=fill, **kw)
+        z[...] = a
+        z = zarr.open_array(zarr.storage.LocalStore(path), mode="r")
+        check_decoded(a, z[...], bound)
+        check_decoded(a[10:70, 33:88], z[10:70, 33:88], bound)
+    # the reference: Zlib on the same Fortran-ordered array is exact
+    zl = zarr.create_array(zarr.storage.LocalStore(tmp_path / "zlib.zarr"), shape=a.shape,
+                           chunks=chunks, dtype=a.dtype, zarr_format=2, order="F",
+                           fill_value=fill, compressors=numcodecs.Zlib(), filters=None)
+    zl[...] = a
+    np.testing.assert_array_equal(zl[...], a)
+
+
+@pytest.mark.parametrize("dtype", ["float32", "int16"])
+@pytest.mark.parametrize("lossless", [True, False])
+def test_zarr_v3_memory_orders(tmp_path, dtype, lossless):
+    """A Zarr v3 array-to-bytes codec gets the chunk's values as an NDBuffer, in the memory
+    order of the array's runtime ``config`` (C or F), from sources of any layout, inside a
+    shard too: every combination reads back within the bound."""
+    rng = np.random.default_rng(32)
+    a = terrain(rng, (96, 80), dtype, amplitude=6000.0, noise=5.0)
+    bound = None if lossless else 3.0
+    fill = np.nan if dtype == "float32" else 0
+    for order in ("C", "F"):
+        for kin, src in layouts(a).items():
+            codec = VtzCodec(lossless=True) if lossless else VtzCodec(max_error=bound)
+            store = zarr.storage.MemoryStore()
+            z = v3_array(store, src, (32, 48), codec, fill_value=fill, config={"order": order})
+            check_decoded(a, z[...], bound)
+            z = zarr.open_array(store, mode="r").with_config({"order": order})
+            assert z.async_array.config.order == order
+            check_decoded(a, z[...], bound)
+            check_decoded(a[5:60, 7:79], z[5:60, 7:79], bound)
+        sharded = zarr.create_array(
+            zarr.storage.MemoryStore(), shape=a.shape, chunks=(16, 16), shards=(48, 80),
+            dtype=a.dtype, serializer=codec, compressors=None, fill_value=fill,
+            config={"order": order},
+        )
+        sharded[...] = np.asfortranarray(a)
+        check_decoded(a, sharded[...], bound)
 
 
 # -- a damaged chunk in a store ---------------------------------------------------------

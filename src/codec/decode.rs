@@ -244,9 +244,13 @@ pub(crate) fn decode_reader<R: Read + Seek>(
         base: None,
         progress,
     };
+    // Progress as each stage finishes: the method's decode (with its own reports where it
+    // makes any), then, for a scale that the method's surface does not evaluate itself,
+    // the resampling row by row, the second half. The caller reports 1.
     if let Some(req) = overview {
         let k = req.k;
         let mut data = method.decode_decimated(&job, k)?;
+        progress(1.0);
         if let Some(f) = &flat {
             let (st, ow) = (1usize << k, req.width);
             for (j, o) in data.iter_mut().enumerate() {
@@ -274,7 +278,16 @@ pub(crate) fn decode_reader<R: Read + Seek>(
             return Ok(scaled_raster(r, &header, flat.as_ref(), s, gdal_metadata));
         }
     }
+    // The method's decode is most of the work: 95 % of it (half with a scale); the flat
+    // regions and the mask, then the caller's end, the rest.
+    let share = if scale.is_some() { 0.5 } else { 0.95 };
+    let first = |f: f64| progress(share * f.clamp(0.0, 1.0));
+    let job = DecodeJob {
+        progress: &first,
+        ..job
+    };
     let mut data = method.decode(&job)?;
+    progress(share);
     if let Some(f) = &flat {
         // Flat regions hold their exact value whatever the method made of them.
         f.overwrite(&mut data, w, (win.x, win.y, win.width, win.height));
@@ -293,7 +306,9 @@ pub(crate) fn decode_reader<R: Read + Seek>(
     if let Some((s, ow, oh)) = scale {
         // A method without a surface of its own: its decoded samples interpolated, the
         // flat regions then exact by the nearest-sample rule.
-        let out = resample(&r, s, ow, oh, opts.threads)?;
+        let out = resample(&r, s, ow, oh, opts.threads, &|f| {
+            progress(share + (1.0 - share) * f)
+        })?;
         let (data, mask) = (out.data, out.mask.unwrap_or_else(|| vec![true; ow * oh]));
         return Ok(scaled_raster(
             (data, mask, ow, oh),

@@ -320,7 +320,8 @@ pub struct TileInfo {
     pub offset: u64,
     /// Bytes of its block.
     pub bytes: u64,
-    /// The name of its primary section's type (its method).
+    /// The method of its primary section, by the name `--method` takes (`sibson` for a
+    /// sites section), or `unknown-N` for a section type this build does not know.
     pub method: String,
     /// Valid samples.
     pub valid: u64,
@@ -343,7 +344,9 @@ impl FileInfo {
 pub struct SectionInfo {
     /// Its index in the directory (what `--section N` takes).
     pub index: usize,
-    /// The type's name: a method's, `mask`, `metadata`, or `unknown-N`.
+    /// The section type's name as spec/FORMAT.md spells it: `sites`, `grid`, `mask`,
+    /// `metadata`, … or `unknown-N` (a method section's method is [`SectionInfo::method`],
+    /// named as `--method` takes it: the `sites` section is the `sibson` method's).
     pub name: String,
     /// The section type code (spec/FORMAT.md).
     pub code: u16,
@@ -462,9 +465,9 @@ impl<R: Read + Seek> Decoder<R> {
                             coded: g.ext(k),
                             offset: t.offset,
                             bytes: t.length,
-                            method: decode::kind_names(t.kind).map_or_else(
+                            method: methods::by_section(t.kind).map_or_else(
                                 || format!("unknown-{}", t.kind.code()),
-                                str::to_string,
+                                |m| m.name().to_string(),
                             ),
                             valid: t.valid,
                             range: t.range,
@@ -680,6 +683,17 @@ impl<R: Read + Seek> Decoder<R> {
             })?;
         }
         Ok(())
+    }
+
+    /// [`Decoder::stats`] of one method: the statistics of its first section (the primary
+    /// one where it is that method's), `None` when the file has no section of it or the
+    /// method keeps none. What it costs is the method's: the residual layer's reads its
+    /// section's header only, the sites' decode the surface.
+    pub fn method_stats(&mut self, m: Method) -> Result<Option<Stats>> {
+        if !m.has_stats() {
+            return Ok(None);
+        }
+        Ok(self.with_section(m.0, |job| m.0.describe(job))?.flatten())
     }
 
     /// The statistics each method keeps of its sections: for every method with a section

@@ -83,6 +83,7 @@ pub(crate) fn resample(
     ow: usize,
     oh: usize,
     threads: usize,
+    progress: &(dyn Fn(f64) + Sync),
 ) -> Result<Raster> {
     let s = s.reduced();
     let xs: Vec<Axis> = (0..ow).map(|i| axis(i, r.width, s)).collect();
@@ -134,6 +135,20 @@ pub(crate) fn resample(
             };
             *d = crate::quant::finish(v, st, mapping);
             *m = true;
+        }
+    };
+    // `progress` gets the fraction of output rows done, about every 1/256 of them, under a
+    // lock so that the fractions never decrease whichever thread reports.
+    let rows_done = std::sync::Mutex::new(0usize);
+    let every = (oh / 256).max(1);
+    let row = |ay: &Axis, data: &mut [f64], mask: &mut [bool]| {
+        row(ay, data, mask);
+        let mut n = rows_done
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        *n += 1;
+        if *n % every == 0 || *n == oh {
+            progress(*n as f64 / oh as f64);
         }
     };
     let mut data = vec![0.0; ow * oh];

@@ -193,6 +193,11 @@ pub fn encode_tiled<W: Write + Seek>(
         notes: Vec::new(),
     };
     let mut counts: Vec<(Method, usize)> = Vec::new();
+    // Progress counts two steps per tile, its encode and its write, and one for the index
+    // that `finish` writes: each is reported as it happens (the encodes from the workers as
+    // they finish, in any order; the writes in tile order as soon as a tile's turn comes).
+    let steps = (2 * total + 1) as f64;
+    let mut done = 0usize;
     progress(0.0);
     for r0 in (0..rows).step_by(group) {
         let mut tiles: Vec<(usize, Raster)> = Vec::new();
@@ -212,41 +217,80 @@ pub fn encode_tiled<W: Write + Seek>(
                 tiles.push((k, t));
             }
         }
-        let results: Vec<Result<_>> = pool.install(|| {
-            use rayon::prelude::*;
-            tiles
-                .par_iter()
-                .map(|(k, t)| {
-                    let r = methods::with_threads(1, || encode_parts(t, &topts, &mut |_| {}))
-                        .map_err(|e| e.context(tile_name(&grid, *k)));
-                    r.map(|(hd, sections, rep)| {
-                        let kind = sections[hd.primary as usize].kind;
-                        let block = tile_block(hd.primary, &sections);
-                        (block, kind, t.valid_count() as u64, hd.range, rep)
-                    })
+        let n = tiles.len();
+        let mut ready: Vec<Option<Result<_>>> = (0..n).map(|_| None).collect();
+        let mut next = 0usize;
+        let (tx, rx) = std::sync::mpsc::channel();
+        let (pool, tiles, topts, grid) = (&pool, &tiles, &topts, &grid);
+        let outcome: Result<()> = std::thread::scope(|scope| {
+            let workers = scope.spawn(move || {
+                pool.install(|| {
+                    use rayon::prelude::*;
+                    tiles
+                        .par_iter()
+                        .enumerate()
+                        .for_each_with(tx, |tx, (i, (k, t))| {
+                            let r =
+                                methods::with_threads(1, || encode_parts(t, topts, &mut |_| {}))
+                                    .map_err(|e| e.context(tile_name(grid, *k)));
+                            let r = r.map(|(hd, sections, rep)| {
+                                let kind = sections[hd.primary as usize].kind;
+                                let block = tile_block(hd.primary, &sections);
+                                (block, kind, t.valid_count() as u64, hd.range, rep)
+                            });
+                            // The receiver has gone only when a tile before failed.
+                            let _ = tx.send((i, r));
+                        });
                 })
-                .collect()
-        });
-        drop(tiles);
-        for res in results {
-            let (block, kind, valid, range, rep) = res?;
-            writer.push(&block, kind, valid, range, rep.max_error)?;
-            progress(writer.written() as f64 / total as f64);
-            report.max_error = report.max_error.max(rep.max_error);
-            match counts.iter_mut().find(|(m, _)| *m == rep.method) {
-                Some(c) => c.1 += 1,
-                None => counts.push((rep.method, 1)),
-            }
-            for m in rep.encoded {
-                if !report.encoded.contains(&m) {
-                    report.encoded.push(m);
+            });
+            let mut outcome = Ok(());
+            'tiles: for (i, r) in rx.iter() {
+                done += 1;
+                progress(done as f64 / steps);
+                ready[i] = Some(r);
+                // Write every tile whose turn has come, in tile order.
+                while let Some(r) = ready.get_mut(next).and_then(Option::take) {
+                    next += 1;
+                    let written = r.and_then(|(block, kind, valid, range, rep)| {
+                        writer.push(&block, kind, valid, range, rep.max_error)?;
+                        Ok(rep)
+                    });
+                    let rep = match written {
+                        Ok(rep) => rep,
+                        Err(e) => {
+                            outcome = Err(e);
+                            break 'tiles;
+                        }
+                    };
+                    done += 1;
+                    progress(done as f64 / steps);
+                    report.max_error = report.max_error.max(rep.max_error);
+                    match counts.iter_mut().find(|(m, _)| *m == rep.method) {
+                        Some(c) => c.1 += 1,
+                        None => counts.push((rep.method, 1)),
+                    }
+                    for m in rep.encoded {
+                        if !report.encoded.contains(&m) {
+                            report.encoded.push(m);
+                        }
+                    }
+                    // The first tile's note says why (the others' differ in their numbers only).
+                    if report.notes.is_empty() {
+                        report.notes = rep.notes;
+                    }
                 }
             }
-            // The first tile's note says why (the others' differ in their numbers only).
-            if report.notes.is_empty() {
-                report.notes = rep.notes;
+            // Leaving the loop early drops the receiver: the workers' last sends fail
+            // quietly and they finish the group's remaining tiles.
+            drop(rx);
+            if let Err(panic) = workers.join() {
+                std::panic::resume_unwind(panic);
             }
-        }
+            outcome
+        });
+        outcome?;
+        debug_assert_eq!(next, n, "every tile of the group written");
+        debug_assert_eq!(writer.written(), done / 2, "tiles written so far");
     }
     // The method most tiles chose (the first such in tile order on a tie).
     if let Some(&(m, _)) = counts.iter().max_by_key(|(_, n)| *n) {
@@ -727,6 +771,8 @@ pub(crate) fn decode_all<R: Read + Seek>(
         scale: None,
         ..opts.clone()
     };
+    // With a scale, the bands are the first half of the work, the resampling the second.
+    let share = if scale.is_some() { 0.5 } else { 1.0 };
     let skipped = decode_bands(
         rd,
         &o,
@@ -734,7 +780,7 @@ pub(crate) fn decode_all<R: Read + Seek>(
             parts.push(b);
             Ok(())
         },
-        progress,
+        &|f| progress(share * f),
     )?;
     let mut it = parts.into_iter();
     let mut r = it.next().ok_or_else(|| Error::invalid("empty window"))?;
@@ -756,7 +802,9 @@ pub(crate) fn decode_all<R: Read + Seek>(
     }
     r.normalize_mask();
     if let Some((s, ow, oh)) = scale {
-        r = super::resample::resample(&r, s, ow, oh, opts.threads)?;
+        r = super::resample::resample(&r, s, ow, oh, opts.threads, &|f| {
+            progress(share + (1.0 - share) * f)
+        })?;
     }
     Ok((r, skipped))
 }

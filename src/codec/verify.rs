@@ -14,7 +14,8 @@ use std::io::{Read, Seek};
 pub struct Verified {
     /// Sections whose checksums were checked (all of them).
     pub sections: usize,
-    /// The surface sections decoded in full: (directory index, name, stored max error).
+    /// The surface sections decoded in full: (directory index, method name, stored max
+    /// error).
     pub surfaces: Vec<(usize, String, f64)>,
     /// Valid samples (from the mask), each checked in every surface.
     pub valid: u64,
@@ -190,7 +191,8 @@ pub(crate) fn verify<R: Read + Seek>(rd: &mut ContainerReader<R>) -> Result<Veri
                 )));
             }
         }
-        surfaces.push((i, e.name.clone(), bound, data));
+        // The method's name, as `--method` and `vtz info` spell it (`sibson`, not `sites`).
+        surfaces.push((i, m.name().to_string(), bound, data));
     }
     Ok(Verified {
         sections: entries.len(),

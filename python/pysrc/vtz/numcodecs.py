@@ -16,6 +16,15 @@ In a Zarr format 2 array (zarr-python 3 passes the chunk array itself to a ``com
 with no ``filters`` in front of it), give it as the compressor:
 ``zarr.create_array(..., zarr_format=2, compressors=vtz.numcodecs.Vtz(max_error=0.5), filters=None)``.
 For Zarr format 3 use :class:`vtz.zarr.VtzCodec` as the ``serializer``.
+
+Sample order: as every numcodecs codec, ``Vtz`` codes a chunk's samples in the order its
+buffer holds them, and its callers (Zarr format 2, ``numcodecs.compat.ndarray_copy``)
+reshape a decoded chunk from that order. A C-ordered chunk of shape (h, w) is coded as
+the h x w raster it is; a Fortran-ordered one (``order="F"`` arrays) holds its transpose in
+memory and is coded as that w x h raster (the bound and the size are the same); a chunk
+that is neither C- nor Fortran-contiguous (a strided view) is coded row by row, as numpy's
+``reshape(-1, order="A")`` walks it. ``decode(buf, out)`` fills ``out`` the same way: in
+its memory order when it is C- or Fortran-contiguous, row by row otherwise.
 """
 
 from __future__ import annotations
@@ -26,7 +35,7 @@ from typing import Any
 
 import numpy as np
 from numcodecs.abc import Codec
-from numcodecs.compat import ensure_bytes, ndarray_copy
+from numcodecs.compat import ensure_bytes, ensure_ndarray_like
 from numcodecs.registry import register_codec
 
 import vtz
@@ -141,11 +150,76 @@ def _plane_shape(shape: tuple[int, ...]) -> tuple[int, int]:
 
 
 def _as_plane(array: Any) -> np.ndarray:
-    """``array`` as the 2-D, C-contiguous, native-endian numpy array ``vtz.encode`` takes."""
+    """``array`` as the 2-D, C-contiguous, native-endian numpy array ``vtz.encode`` takes,
+    its samples at their logical places (a Zarr v3 codec's contract: the chunk's values,
+    whatever its memory layout)."""
     a = np.asarray(array)
     dt = _check_dtype(a.dtype)
     a = a.reshape(_plane_shape(a.shape))
     return np.ascontiguousarray(a, dtype=dt)
+
+
+def _is_fortran(a: np.ndarray) -> bool:
+    """Whether ``a``'s memory holds it in Fortran order and not also in C order (an array
+    that is both, such as a single row, has one memory order)."""
+    return bool(a.flags.f_contiguous and not a.flags.c_contiguous)
+
+
+def _memory_plane(array: Any) -> np.ndarray:
+    """The samples of ``array`` in the order its buffer holds them (numcodecs' contract),
+    as the 2-D, C-contiguous, native-endian plane ``vtz.encode`` takes.
+
+    A C-ordered chunk of shape (..., h, w) gives its h x w plane; a Fortran-ordered one
+    holds its transpose in memory and gives that, w x h; a chunk that is neither C- nor
+    Fortran-contiguous gives its samples row by row (numpy's ``reshape(-1, order="A")``
+    order, which numcodecs' callers use to flatten a decoded chunk). The shape must be
+    2-D once leading axes of size 1 are dropped (or 1-D), else ``vtz.InvalidArgumentError``.
+    """
+    a = np.asarray(array)
+    dt = _check_dtype(a.dtype)
+    h, w = _plane_shape(a.shape)
+    if _is_fortran(a):
+        # A view: the buffer's samples in memory order, as the w x h raster they form.
+        plane = a.reshape(-1, order="F").reshape(w, h)
+    else:
+        plane = a.reshape(h, w)
+    return np.ascontiguousarray(plane, dtype=dt)
+
+
+def _fill(decoded: np.ndarray, out: Any) -> Any:
+    """Copy a decoded plane into ``out`` in ``out``'s own sample order (its memory order when
+    C- or Fortran-contiguous, row by row otherwise), as numcodecs' ``ndarray_copy`` does, but
+    never reinterpreting the samples' bits: ``out`` is an array of the chunk's dtype (any
+    byte order, any shape of as many samples) or a contiguous byte buffer of its size.
+    Returns ``out``; anything else raises ``vtz.InvalidArgumentError``."""
+    dst = ensure_ndarray_like(out)
+    if not getattr(dst.flags, "writeable", True):
+        raise vtz.InvalidArgumentError("out is read-only")
+    flat = decoded.reshape(-1)
+    native = dst.dtype.newbyteorder("=") if dst.dtype.byteorder not in ("=", "|") else dst.dtype
+    if native == decoded.dtype:
+        if dst.size != flat.size:
+            raise vtz.InvalidArgumentError(
+                f"out holds {dst.size} samples, the chunk has {flat.size}"
+                f" ({decoded.shape[0]}x{decoded.shape[1]})"
+            )
+        np.copyto(dst, flat.reshape(dst.shape, order="F" if _is_fortran(dst) else "C"))
+        return out
+    if dst.dtype.itemsize == 1 and dst.dtype.kind in "uV" and (
+        dst.flags.c_contiguous or dst.flags.f_contiguous
+    ):
+        # A raw byte buffer: the samples' bytes, native byte order, in the stream's order.
+        if dst.nbytes != decoded.nbytes:
+            raise vtz.InvalidArgumentError(
+                f"out holds {dst.nbytes} bytes, the chunk has {decoded.nbytes}"
+                f" ({decoded.shape[0]}x{decoded.shape[1]} {decoded.dtype})"
+            )
+        np.copyto(dst.reshape(-1, order="A").view(np.uint8), flat.view(np.uint8))
+        return out
+    raise vtz.InvalidArgumentError(
+        f"out has dtype {dst.dtype}, the chunk is {decoded.dtype}: pass an array of that"
+        " dtype, or a contiguous byte buffer"
+    )
 
 
 class Vtz(Codec):
@@ -181,8 +255,10 @@ class Vtz(Codec):
     -----
     vtz codes 2-D arrays. ``encode`` codes a 1-D chunk of n samples as 1 x n, and an N-D
     chunk whose axes before the last two all have size 1 as its last two axes; other
-    chunks raise :class:`vtz.InvalidArgumentError`. ``decode`` returns the 2-D array
-    (numcodecs' callers reshape it, or pass ``out``).
+    chunks raise :class:`vtz.InvalidArgumentError`. Samples travel in the order the
+    chunk's buffer holds them (see the module's docstring): a Fortran-ordered chunk is coded
+    as its transpose, and ``decode`` returns the stream's 2-D raster (numcodecs' callers
+    reshape it in the array's order, or pass ``out``).
     """
 
     codec_id = "vtz"
@@ -212,12 +288,14 @@ class Vtz(Codec):
         buf : array_like
             The chunk: a numpy array (or anything ``numpy.asarray`` takes) of dtype uint8,
             int16, uint16, int32, float32 or float64, 2-D or reducible to 2-D (see Notes of
-            the class).
+            the class), any byte order, any memory layout.
 
         Returns
         -------
         bytes
-            The vtz stream.
+            The vtz stream of the chunk's samples in the order its buffer holds them: an
+            (h, w) chunk in C order as an h x w raster, in Fortran order as the w x h raster
+            its memory holds (its transpose), neither (a strided view) row by row.
 
         Raises
         ------
@@ -226,7 +304,7 @@ class Vtz(Codec):
         vtz.UnmetError
             The chosen method cannot meet the bound on this chunk.
         """
-        plane = _as_plane(buf)
+        plane = _memory_plane(buf)
         return vtz.encode(
             plane,
             max_error=self.max_error,
@@ -244,23 +322,32 @@ class Vtz(Codec):
         ----------
         buf : bytes-like
             A vtz stream (bytes, bytearray, memoryview or a uint8 numpy array).
-        out : numpy.ndarray, optional
-            Where to put the samples: an array of the chunk's dtype and number of samples
-            (any shape, as numcodecs' ``ndarray_copy`` takes it).
+        out : numpy.ndarray or writable buffer, optional
+            Where to put the samples: an array of the chunk's dtype (any byte order) and
+            number of samples, any shape, filled in its memory order when it is C- or
+            Fortran-contiguous and row by row otherwise (as numcodecs' ``ndarray_copy``
+            and Zarr format 2 read a chunk); or a contiguous byte buffer of the chunk's
+            size, which gets the samples' native bytes.
 
         Returns
         -------
         numpy.ndarray
-            The 2-D chunk (``out`` when given). Nodata samples are the nodata value, or NaN
-            in float chunks without one.
+            ``out`` when given; else the stream's 2-D raster, C-ordered: the chunk itself
+            for a chunk encoded from C order, its transpose (the memory it came from) for
+            one encoded from Fortran order, which numcodecs' callers reshape in that order.
+            Nodata samples are the nodata value, or NaN in float chunks without one.
 
         Raises
         ------
         vtz.CorruptError
             The bytes are truncated or damaged.
+        vtz.InvalidArgumentError
+            ``out`` has another dtype or number of samples, or is read-only.
         """
         decoded = vtz.decode(ensure_bytes(buf), threads=self.threads)
-        return ndarray_copy(decoded, out)
+        if out is None:
+            return decoded
+        return _fill(decoded, out)
 
     def get_config(self) -> dict[str, Any]:
         """The codec's configuration as a JSON-ready dict (``id`` and the constructor's arguments).

@@ -71,12 +71,36 @@ impl ShowAfterASecond {
         let _ = self.t.join();
         self.pb.finish_and_clear();
     }
+
+    /// End a bar: one whose work reported its end stays drawn, full (`100%`, `16/16
+    /// tiles`); one that stopped short (an error) is cleared.
+    fn end(self, complete: bool) {
+        let _ = self.tx.send(());
+        let _ = self.t.join();
+        if complete {
+            self.pb.finish();
+        } else {
+            self.pb.finish_and_clear();
+        }
+    }
+}
+
+/// The ETA of a bar as `HH:MM:SS`, or `--:--:--` before the first progress (indicatif's
+/// own says 00:00:00 then).
+fn eta(state: &indicatif::ProgressState, w: &mut dyn std::fmt::Write) {
+    if state.pos() == 0 {
+        let _ = w.write_str("--:--:--");
+        return;
+    }
+    let t = state.eta().as_secs();
+    let _ = write!(w, "{:02}:{:02}:{:02}", t / 3600, (t / 60) % 60, t % 60);
 }
 
 impl Ui {
     /// Run `f` with a progress bar fed by its callback (fraction 0..1): percentage, elapsed
     /// time and ETA, drawn from the first second on a terminal (ticking even while the work
-    /// reports nothing), never moving backwards; hidden with --quiet.
+    /// reports nothing), never moving backwards, left drawn at 100 % when the work reports
+    /// its end (1.0); hidden with --quiet.
     /// [`Ui::progress`] for work done tile by tile: the bar counts `tiles` (a plain bar
     /// when there is one).
     pub fn progress_tiles<T>(
@@ -91,9 +115,10 @@ impl Ui {
         let pb = ProgressBar::with_draw_target(Some(tiles), ProgressDrawTarget::hidden());
         pb.set_style(
             ProgressStyle::with_template(
-                "{msg} [{bar:30}] {pos}/{len} tiles {elapsed_precise} ETA {eta_precise}",
+                "{msg} [{bar:30}] {pos}/{len} tiles {elapsed_precise} ETA {vtz_eta}",
             )
             .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .with_key("vtz_eta", eta)
             .progress_chars("=> "),
         );
         pb.set_message(msg.to_string());
@@ -106,7 +131,7 @@ impl Ui {
                 pb.set_position(pos);
             }
         });
-        shown.done();
+        shown.end(high.load(Ordering::Relaxed) == tiles);
         out
     }
 
@@ -117,9 +142,10 @@ impl Ui {
         let pb = ProgressBar::with_draw_target(Some(1000), ProgressDrawTarget::hidden());
         pb.set_style(
             ProgressStyle::with_template(
-                "{msg} [{bar:30}] {percent:>3}% {elapsed_precise} ETA {eta_precise}",
+                "{msg} [{bar:30}] {percent:>3}% {elapsed_precise} ETA {vtz_eta}",
             )
             .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .with_key("vtz_eta", eta)
             .progress_chars("=> "),
         );
         pb.set_message(msg.to_string());
@@ -133,7 +159,7 @@ impl Ui {
                 pb.set_position(pos);
             }
         });
-        shown.done();
+        shown.end(high.load(Ordering::Relaxed) == 1000);
         out
     }
 }
@@ -150,12 +176,18 @@ pub struct RasterOpts {
     /// 16-bit PNG code that marks nodata (e.g. 0).
     #[arg(long, value_name = "CODE")]
     pub png_nodata: Option<u16>,
-    /// Writing: let PNG output round values its codes cannot hold (16-bit codes, Terrain-RGB's
+}
+
+/// Options of the commands that write a raster file (`decode`, `convert`), beside
+/// [`RasterOpts`]; the commands that only read rasters do not offer them.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct OutputOpts {
+    /// Let PNG output round values its codes cannot hold (16-bit codes, Terrain-RGB's
     /// 0.1 m steps); without it such a write is refused, never silently rounded.
     #[arg(long)]
     pub round: bool,
-    /// Writing: let a format that cannot place the raster (an .hgt not named after its
-    /// tile, N22W160.hgt) write it without its georeferencing; without it such a write is
+    /// Let a format that cannot place the raster (an .hgt not named after its tile,
+    /// N22W160.hgt) write it without its georeferencing; without it such a write is
     /// refused.
     #[arg(long)]
     pub drop_georef: bool,
@@ -172,6 +204,29 @@ impl RasterOpts {
             nodata_code: self.png_nodata,
         })
     }
+}
+
+/// An input that is a directory is a usage error that says so (the formats would call it a
+/// file with an empty extension).
+pub fn check_not_dir(input: &Path) -> Result<()> {
+    if input.is_dir() {
+        return Err(Error::invalid(format!(
+            "{} is a directory: give a raster file (or a point file to encode)",
+            input.display()
+        )));
+    }
+    Ok(())
+}
+
+/// An error bound option's value (`--max-error`, `--rmse`): E data units or E% of the value
+/// range, E a finite number ≥ 0; anything else is a usage error naming the option.
+pub fn bound(option: &str, s: &str) -> Result<vtz::ErrorBound> {
+    vtz::ErrorBound::parse(s).map_err(|_| {
+        Error::invalid(format!(
+            "{option} must be a finite number ≥ 0 in data units or a percentage of the value range \
+             (e.g. 2.5 or 1%), not '{s}'"
+        ))
+    })
 }
 
 pub fn parse_format(s: Option<&str>) -> Result<Option<Format>> {
@@ -210,13 +265,18 @@ pub fn open_source(
     vtz::formats::open_source(path, &ro)
 }
 
-pub fn write_options(format: Option<Format>, force: bool, opts: &RasterOpts) -> WriteOptions {
+pub fn write_options(
+    format: Option<Format>,
+    force: bool,
+    opts: &RasterOpts,
+    out: &OutputOpts,
+) -> WriteOptions {
     WriteOptions {
         format,
         force,
         png_mapping: opts.mapping(),
-        round: opts.round,
-        drop_georef: opts.drop_georef,
+        round: out.round,
+        drop_georef: out.drop_georef,
     }
 }
 
@@ -348,6 +408,15 @@ pub fn is_vtz(path: &Path, format: Option<Format>) -> bool {
             && path
                 .extension()
                 .is_some_and(|e| e.eq_ignore_ascii_case("vtz")))
+}
+
+/// `n` and the noun, plural when `n` is not 1: `1 tile`, `16 tiles`, `1 section`.
+pub fn count(n: u64, noun: &str) -> String {
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
+    }
 }
 
 /// A statistic as JSON.

@@ -21,6 +21,8 @@ pub struct Args {
     pub force: bool,
     #[command(flatten)]
     pub raster: RasterOpts,
+    #[command(flatten)]
+    pub output_opts: common::OutputOpts,
 }
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
@@ -31,7 +33,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     }
     common::check_output(&a.input, &a.output, a.force)?;
     let raster = ui.busy("reading", || common::read_raster(&a.input, from, &a.raster))?;
-    let wo = common::write_options(to, a.force, &a.raster);
+    let wo = common::write_options(to, a.force, &a.raster, &a.output_opts);
     ui.busy("writing", || vtz::write_path(&raster, &a.output, &wo))?;
     ui.say(format!(
         "{} → {}: {}x{} {}",

@@ -15,7 +15,7 @@ pub struct Args {
     #[arg(long, value_name = "FMT")]
     pub format: Option<String>,
     /// Decode this section instead of the primary one: its index from `vtz info`, or its
-    /// method (sibson, grid, fis, haar).
+    /// method (sibson, grid, haar, fis, residual; `sites` is sibson's section)
     #[arg(long, value_name = "N|METHOD")]
     pub section: Option<String>,
     /// Sites section: decode only the first N sites (a coarser surface).
@@ -73,6 +73,8 @@ pub struct Args {
     pub crs: Option<String>,
     #[command(flatten)]
     pub raster: RasterOpts,
+    #[command(flatten)]
+    pub output_opts: common::OutputOpts,
 }
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
@@ -169,27 +171,34 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             ));
         }
         ui.say(format!(
-            "{}: {}x{} {} ({tiles} tiles, written band by band)",
+            "{}: {}x{} {} ({}, written band by band)",
             a.output.display(),
             win.width,
             win.height,
-            d.output_type().describe()
+            d.output_type().describe(),
+            common::count(tiles, "tile")
         ));
         return Ok(());
     }
-    let raster = ui
-        .progress_tiles("decoding", tiles, |p| {
-            d.options(opts.clone()).decode_progress(p)
-        })
-        .map_err(|e| e.context(a.input.display()))?;
+    // One bar for the whole command: the decode's own progress (tile by tile, or stage by
+    // stage of an untiled file) fills its first half, the write (one step: the formats
+    // write a raster whole) the second.
+    let wo = common::write_options(format, a.force, &a.raster, &a.output_opts);
+    let raster = ui.progress("decoding", |p| {
+        let raster = d
+            .options(opts.clone())
+            .decode_progress(&|f| p(0.5 * f))
+            .map_err(|e| e.context(a.input.display()))?;
+        vtz::write_path(&raster, &a.output, &wo)?;
+        p(1.0);
+        Ok::<_, vtz::Error>(raster)
+    })?;
     for s in d.skipped() {
         ui.say(format!(
             "warning: wrote nodata for {}",
             s.strip_prefix("corrupt input: ").unwrap_or(s)
         ));
     }
-    let wo = common::write_options(format, a.force, &a.raster);
-    ui.busy("writing", || vtz::write_path(&raster, &a.output, &wo))?;
     ui.say(format!(
         "{}: {}x{} {}",
         a.output.display(),

@@ -32,9 +32,9 @@ pub struct Args {
     /// Sibson sites: stop when the RMSE is at most E data units or E% of the range.
     #[arg(long, value_name = "E")]
     pub rmse: Option<String>,
-    /// Representation: best (smallest that meets the request), sibson, grid, fis, haar,
-    /// residual; a
-    /// comma list (sibson,fis,haar) writes each as a section, the smallest as the primary.
+    /// Representation: best (smallest that meets the request), sibson (alias sites), grid,
+    /// haar, fis, residual; a comma list (sibson,fis,haar) writes each as a section, the
+    /// smallest as the primary.
     #[arg(long, default_value = "best")]
     pub method: String,
     /// FIS: interpolation points every K samples (default: the cheapest K that meets the bound).
@@ -67,7 +67,7 @@ pub struct Args {
     pub json: bool,
     /// Cut a raster larger than N samples in either direction into tiles of at most N × N
     /// that encode on all cores and decode alone (0 = never). Default: rasters of more than
-    /// 4096² samples (whatever their shape) are cut into tiles of about 1024.
+    /// 4096² samples (whatever their shape) are cut into tiles of about 1024 × 1024 samples
     #[arg(long, value_name = "N")]
     pub tile: Option<u32>,
     /// Threads for a tiled encode (default: all cores); the file is the same for any count.
@@ -98,7 +98,11 @@ pub struct Args {
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let format = common::parse_format(a.format.as_deref())?;
-    let bound = a.max_error.as_deref().map(ErrorBound::parse).transpose()?;
+    let bound = a
+        .max_error
+        .as_deref()
+        .map(|s| common::bound("--max-error", s))
+        .transpose()?;
     let output = a
         .output
         .clone()
@@ -107,7 +111,11 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     // Every option is parsed and checked before the (maybe long) read.
     let norm: vtz::Norm = a.norm.parse()?;
     let methods = vtz::Method::parse_list(&a.method)?;
-    let rmse = a.rmse.as_deref().map(ErrorBound::parse).transpose()?;
+    let rmse = a
+        .rmse
+        .as_deref()
+        .map(|s| common::bound("--rmse", s))
+        .transpose()?;
     if let Some(b) = a.bps.filter(|b| !(*b > 0.0 && b.is_finite())) {
         return Err(vtz::Error::invalid(format!("--bps {b} must be positive")));
     }
@@ -258,8 +266,8 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         }
         if let Some(t) = &info.tiles {
             ui.say(format!(
-                "  {} tiles of {}x{} ({} x {})",
-                t.tiles.len(),
+                "  {} of {}x{} ({} x {})",
+                common::count(t.tiles.len() as u64, "tile"),
                 t.tile_width,
                 t.tile_height,
                 t.cols,

@@ -43,6 +43,7 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
         .map(|(e, b)| {
             serde_json::json!({
                 "index": e.index, "type": e.name, "code": e.code,
+                "method": e.method.map(|m| m.name()),
                 "required": e.required,
                 "primary": e.primary,
                 "offset": e.offset, "bytes": e.bytes,
@@ -58,7 +59,22 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
             "epsg": g.epsg, "wkt": g.wkt, "geotiff_keys": g.geokeys.is_some(),
         })
     });
-    let stats = if a.stats { dec.stats()? } else { Vec::new() };
+    let stats = if a.stats {
+        dec.stats()?
+    } else if info.tiles.is_none()
+        && info
+            .sections
+            .iter()
+            .any(|e| e.method == Some(vtz::Method::RESIDUAL))
+    {
+        // The residual layer's coding (predictor, levels, lattice step) is read from its
+        // section's header: cheap, so plain `info` names it too.
+        dec.method_stats(vtz::Method::RESIDUAL)?
+            .into_iter()
+            .collect()
+    } else {
+        Vec::new()
+    };
     let tiles = info.tiles.as_ref().map(|t| {
         serde_json::json!({
             "tile_width": t.tile_width, "tile_height": t.tile_height,
@@ -212,7 +228,10 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
             num(worst)
         );
         for (m, n, b) in &methods {
-            outln!("  {m:<9} {n:>6} tiles {b:>12} bytes");
+            outln!(
+                "  {m:<9} {:>12} {b:>12} bytes",
+                common::count(*n as u64, "tile")
+            );
         }
         if a.tiles {
             outln!("  tile      x      y  width height      bytes method     max error");
@@ -232,11 +251,22 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
         }
     }
     outln!("sections      {}", info.sections.len());
+    // A method's section by the method's name (`sibson`, as --method takes it; the spec's
+    // type name `sites` is its alias), the others by their type; one column for all.
+    let name = |e: &vtz::SectionInfo| e.method.map_or(e.name.clone(), |m| m.name().to_string());
+    let width = info
+        .sections
+        .iter()
+        .map(|e| name(e).chars().count())
+        .max()
+        .unwrap_or(0)
+        .max(9);
+    let iw = info.sections.len().saturating_sub(1).to_string().len();
     for (e, b) in info.sections.iter().zip(&bounds) {
         outln!(
-            "  [{}] {:<9} {:>10} bytes {:>8.4} bits/sample{}{}{}",
+            "  [{:>iw$}] {:<width$} {:>10} bytes {:>8.4} bits/sample{}{}{}",
             e.index,
-            e.name,
+            name(e),
             e.bytes,
             vtz::metrics::bits_per_sample(e.bytes, samples),
             if e.primary { "  primary" } else { "" },

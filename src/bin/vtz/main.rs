@@ -33,7 +33,7 @@ mod sites;
 mod tiles;
 mod verify;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::process::ExitCode;
 
 /// Compress elevation rasters (DEMs, height fields) with a hard error bound.
@@ -79,6 +79,101 @@ enum Cmd {
     Rd(rd::Args),
 }
 
+/// The command line as clap reads it, every option that takes a value allowing a negative
+/// number as that value (`--max-error -1` is the value -1, which the option's check then
+/// refuses with its own message, not "unexpected argument '-1'").
+fn command() -> clap::Command {
+    fn negative(c: clap::Command) -> clap::Command {
+        c.mut_args(|a| {
+            if a.get_action().takes_values() {
+                a.allow_negative_numbers(true)
+            } else {
+                a
+            }
+        })
+        .mut_subcommands(negative)
+    }
+    negative(Cli::command())
+}
+
+/// Parse the command line; `--help` and `--version` print and exit 0, a usage error is
+/// printed as one line (exit 2), as every other error is.
+fn parse() -> Result<Cli, ExitCode> {
+    let res = command()
+        .try_get_matches()
+        .and_then(|m| Cli::from_arg_matches(&m));
+    match res {
+        Ok(cli) => Ok(cli),
+        Err(e) => {
+            use clap::error::ErrorKind;
+            match e.kind() {
+                // Help and version on stdout; `vtz` alone shows the help (on stderr, exit 2).
+                ErrorKind::DisplayHelp
+                | ErrorKind::DisplayVersion
+                | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => {
+                    let _ = e.print();
+                    Err(ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2)))
+                }
+                _ => {
+                    // The subcommand the user typed, for the pointer to its help (clap's
+                    // message names it only in its usage line, which some errors lack).
+                    let sub = std::env::args()
+                        .skip(1)
+                        .find(|a| !a.starts_with('-'))
+                        .filter(|a| command().find_subcommand(a).is_some());
+                    eprintln!("vtz: {}", usage_error_line(&e, sub.as_deref()));
+                    Err(ExitCode::from(2))
+                }
+            }
+        }
+    }
+}
+
+/// A clap usage error as one line: its message, the possible values or a similar name it
+/// suggests, and where the command's help is (`vtz encode --help`). A negative number given
+/// to an option that takes none says "must be ≥ 0".
+fn usage_error_line(e: &clap::Error, sub: Option<&str>) -> String {
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    let text = e.render().to_string();
+    let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
+    let first = lines.next().unwrap_or("invalid arguments");
+    let mut msg = first.strip_prefix("error: ").unwrap_or(first).to_string();
+    let mut help = sub.map_or("vtz --help".to_string(), |s| format!("vtz {s} --help"));
+    for l in lines {
+        if let Some(u) = l.strip_prefix("Usage: ") {
+            // "vtz encode [OPTIONS] <INPUT>": the command's words before its arguments.
+            let words: Vec<&str> = u
+                .split_whitespace()
+                .take_while(|w| !w.starts_with(['-', '<', '['].as_slice()))
+                .collect();
+            if !words.is_empty() {
+                help = format!("{} --help", words.join(" "));
+            }
+        } else if l.starts_with("For more information") || l.contains("use '-- ") {
+            // The pointer to --help is ours; "to pass '-x' as a value, use '-- -x'" is
+            // not true of an option's value.
+        } else {
+            // "the following required arguments were not provided:" + "<INPUT>".
+            msg.push_str(if msg.ends_with(':') { " " } else { "; " });
+            msg.push_str(l.trim_start_matches("tip: "));
+        }
+    }
+    let negative = match (
+        e.get(ContextKind::InvalidArg),
+        e.get(ContextKind::InvalidValue),
+    ) {
+        (Some(ContextValue::String(arg)), Some(ContextValue::String(v)))
+            if e.kind() == ErrorKind::ValueValidation
+                && v.trim().parse::<f64>().is_ok_and(|x| x < 0.0) =>
+        {
+            let name = arg.split_whitespace().next().unwrap_or(arg);
+            Some(format!("{name} must be ≥ 0, not {}", v.trim()))
+        }
+        _ => None,
+    };
+    format!("{} (see {help})", negative.unwrap_or(msg))
+}
+
 fn main() -> ExitCode {
     // Ctrl-C or SIGTERM: remove the temporaries of outputs still being written (an output
     // appears only by a rename once complete), then stop with 130 as a shell expects.
@@ -87,18 +182,23 @@ fn main() -> ExitCode {
         eprintln!("vtz: interrupted; unfinished outputs removed");
         std::process::exit(130);
     });
-    let cli = Cli::parse();
+    let cli = match parse() {
+        Ok(cli) => cli,
+        Err(code) => return code,
+    };
     let ui = common::Ui { quiet: cli.quiet };
     let res = match cli.cmd {
         // Point sets (`points`) share encode, decode and info with rasters: routed here, so
         // the raster commands know nothing of them.
-        Cmd::Encode(a) => points::check_encode_options(&a).and_then(|()| {
-            if points::is_points_input(&a) {
-                points::encode(&a, &ui)
-            } else {
-                encode::run(a, &ui)
-            }
-        }),
+        Cmd::Encode(a) => common::check_not_dir(&a.input)
+            .and_then(|()| points::check_encode_options(&a))
+            .and_then(|()| {
+                if points::is_points_input(&a) {
+                    points::encode(&a, &ui)
+                } else {
+                    encode::run(a, &ui)
+                }
+            }),
         Cmd::Decode(a) => points::decode_route(&a).and_then(|bytes| match bytes {
             Some(b) => points::decode(&a, &b, &ui),
             None => decode::run(a, &ui),
@@ -111,7 +211,7 @@ fn main() -> ExitCode {
             }
         }),
         Cmd::Compare(a) => compare::run(a, &ui),
-        Cmd::Convert(a) => convert::run(a, &ui),
+        Cmd::Convert(a) => common::check_not_dir(&a.input).and_then(|()| convert::run(a, &ui)),
         Cmd::Sites(a) => sites::run(a, &ui),
         Cmd::Cells(a) => cells::run(a, &ui),
         Cmd::Mesh(a) => mesh::run(a, &ui),

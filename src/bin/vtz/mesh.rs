@@ -2,7 +2,7 @@
 
 use crate::common::{self, RasterOpts, Ui};
 use std::path::PathBuf;
-use vtz::{ErrorBound, MeshFormat, MeshRequest, Result, Select};
+use vtz::{MeshFormat, MeshRequest, Result, Select};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -90,7 +90,11 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         _ => Select::Greedy,
     };
     let mut req = MeshRequest::default();
-    req.max_error = a.max_error.as_deref().map(ErrorBound::parse).transpose()?;
+    req.max_error = a
+        .max_error
+        .as_deref()
+        .map(|s| common::bound("--max-error", s))
+        .transpose()?;
     req.sites = a.sites;
     req.levels = a.level;
     req.select = select;

@@ -160,7 +160,7 @@ pub fn encode(a: &encode::Args, ui: &Ui) -> Result<()> {
     let bound = a
         .max_error
         .as_deref()
-        .map(ErrorBound::parse)
+        .map(|s| common::bound("--max-error", s))
         .transpose()?
         .unwrap_or(ErrorBound::PercentOfRange(1.0));
     let bands = band_bounds(a)?;
@@ -346,7 +346,7 @@ pub fn decode(a: &decode::Args, bytes: &[u8], ui: &Ui) -> Result<()> {
     if let Some(g) = r.georef.as_mut() {
         apply_crs(&mut g.epsg, &mut g.wkt, a.crs.as_deref())?;
     }
-    let wo = common::write_options(format, a.force, &a.raster);
+    let wo = common::write_options(format, a.force, &a.raster, &a.output_opts);
     ui.busy("writing", || vtz::write_path(&r, &a.output, &wo))?;
     ui.say(format!(
         "{}: {}x{} f32, cells of {}",

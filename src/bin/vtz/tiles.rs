@@ -2,7 +2,7 @@
 
 use crate::common::{self, RasterOpts, Ui};
 use std::path::PathBuf;
-use vtz::{ErrorBound, Result, TerrainRequest};
+use vtz::{Result, TerrainRequest};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -50,7 +50,11 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let in_format = common::parse_format(a.format.as_deref())?;
     common::check_output_dir(&a.input, &a.output, a.force, "layer.json")?;
     let mut req = TerrainRequest::default();
-    req.max_error = a.max_error.as_deref().map(ErrorBound::parse).transpose()?;
+    req.max_error = a
+        .max_error
+        .as_deref()
+        .map(|s| common::bound("--max-error", s))
+        .transpose()?;
     req.max_zoom = a.max_zoom;
     req.normals = !a.no_normals;
     req.water_mask = !a.no_water_mask;

@@ -1,6 +1,6 @@
 //! `vtz verify`: check .vtz files end to end, one line per file.
 
-use crate::common::Ui;
+use crate::common::{self, Ui};
 use std::path::PathBuf;
 use vtz::metrics::num;
 use vtz::{Limits, Result};
@@ -28,9 +28,9 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
                     .map(|(_, name, b)| format!("{name} ≤ {}", num(*b)))
                     .collect();
                 outln!(
-                    "{}: ok (point set, {} sections: checksums, decodes, {} points, stored max errors within their bounds: {})",
+                    "{}: ok (point set, {}: checksums, decodes, {} points, stored max errors within their bounds: {})",
                     f.display(),
-                    v.sections,
+                    common::count(v.sections as u64, "section"),
                     v.valid,
                     cols.join(", ")
                 );
@@ -38,10 +38,10 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             (Ok(v), false) if v.tiles > 0 => {
                 let worst = v.surfaces.iter().map(|s| s.2).fold(0.0, f64::max);
                 outln!(
-                    "{}: ok ({} tiles, {} sections: checksums, decodes, {} coded samples within their tiles' stored ranges and max errors, the largest {})",
+                    "{}: ok ({}, {}: checksums, decodes, {} coded samples within their tiles' stored ranges and max errors, the largest {})",
                     f.display(),
-                    v.tiles,
-                    v.sections,
+                    common::count(v.tiles as u64, "tile"),
+                    common::count(v.sections as u64, "section"),
                     v.valid,
                     num(worst)
                 );
@@ -61,9 +61,9 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
                     )
                 };
                 outln!(
-                    "{}: ok ({} sections: checksums, decodes, {} valid samples within the stored range and max error of {}{unknown})",
+                    "{}: ok ({}: checksums, decodes, {} valid samples within the stored range and max error of {}{unknown})",
                     f.display(),
-                    v.sections,
+                    common::count(v.sections as u64, "section"),
                     v.valid,
                     surfaces.join(", ")
                 );
