@@ -285,7 +285,7 @@ fn out_of_range_header_fields_are_rejected() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(64))]
+    #![proptest_config(common::proptest_config(64))]
 
     #[test]
     fn container_round_trips_random_sections(
