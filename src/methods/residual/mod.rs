@@ -320,6 +320,11 @@ fn setup(r: &Raster, e: f64, margin: bool, effort: u8) -> Result<Option<Setup>> 
             }
         }
     }
+    // Sub-lattice units multiply the indices by d: on a lattice already near ±2^38 steps
+    // they would leave the range a section may hold, so it is coded on its own steps.
+    if lo.abs().max(hi.abs()) > MAX_UNITS / d {
+        d = 1;
+    }
     let bin = 2.0 * (d as f64 * eu).floor() + 1.0;
     // Odd and at most 2^38 (2^38 − 1 is the widest odd bin a decoder takes).
     let bin = bin.min((MAX_UNITS - 1) as f64) as i64;
