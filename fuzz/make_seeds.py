@@ -84,6 +84,40 @@ with tempfile.TemporaryDirectory() as tmp:
             except subprocess.CalledProcessError:
                 continue
             vtzs.append(p)
+    # Lattices as wide as the residual layer takes (whole numbers up to ±2^38, alternating
+    # extremes) and wider (f32 noise over ±3e38, mixed signs and magnitudes): every residual
+    # coding (efforts 1, 5, 9), lossless and lossy, and `best` (issue 35: overflow).
+    wrng = random.Random(38)
+    def f32_raster(name, w, h, values):
+        path = os.path.join(tmp, name + ".f32")
+        with open(path, "wb") as f:
+            f.write(struct.pack(f"<{w * h}f", *values))
+        with open(path[:-4] + ".json", "w") as f:
+            f.write('{"width": %d, "height": %d}' % (w, h))
+        return path
+    M = 2.0 ** 38
+    wide = {
+        "alternating": [M if (i + i // 23) % 2 else -M for i in range(23 * 19)],
+        "extremes": [wrng.choice((M, -M, 0.0, M / 2, -M / 2)) for _ in range(23 * 19)],
+        "f32noise": [wrng.choice((1, -1)) * 10.0 ** wrng.uniform(-30, 38.5) for _ in range(23 * 19)],
+        "f32max": [wrng.choice((3.4e38, -3.4e38, 1e-38, -1e-38, 0.0)) for _ in range(23 * 19)],
+    }
+    for name, values in wide.items():
+        src = f32_raster(name, 23, 19, values)
+        for m, bound, effort in (("residual", "0", "1"), ("residual", "0", "5"), ("residual", "0", "9"),
+                                 ("residual", "1e30", "1"), ("residual", "1e30", "9"),
+                                 ("residual", "1000", "5"), ("best", "0", "5"), ("best", "1e35", "5")):
+            p = os.path.join(tmp, f"wide_{name}_{m}_{bound}_e{effort}.vtz")
+            args = ["encode", src, "-o", p, "--force", "-q", "--effort", effort]
+            if m != "best":
+                args += ["--method", m]
+            if bound != "0":
+                args += ["--max-error", bound]
+            try:
+                run(*args)
+            except subprocess.CalledProcessError:
+                continue
+            vtzs.append(p)
     for p in vtzs:
         data = open(p, "rb").read()
         put("container", os.path.basename(p), data)
@@ -159,4 +193,21 @@ with tempfile.TemporaryDirectory() as tmp:
     for i in range(16):
         n = rng.randrange(6, 400)
         put("roundtrip", f"random{i}", bytes(rng.randrange(256) for _ in range(n)))
+    # "Wide" roundtrip seeds (type byte | 0x80: raw f32/f64 bits, integer codes over the
+    # type's range): f32 and f64 over huge magnitudes with mixed signs, the f32 extremes,
+    # every integer type's full range; lossless and lossy, efforts 1, 5 and 9.
+    def f32b(v):
+        return struct.pack("<f", v) + b"\0" * 4
+    def f64b(v):
+        return struct.pack("<d", v)
+    for st, make in ((4, lambda: f32b(rng.choice((1, -1)) * 10.0 ** rng.uniform(-38, 38.5))),
+                     (4, lambda: f32b(rng.choice((3.4e38, -3.4e38, 2.0 ** 38, -(2.0 ** 38), 0.0)))),
+                     (5, lambda: f64b(rng.choice((1, -1)) * 10.0 ** rng.uniform(-300, 300))),
+                     (5, lambda: f64b(rng.choice((1.7e308, -1.7e308, 5e-324, 2.0 ** 62, -(2.0 ** 62))))),
+                     (1, lambda: struct.pack("<i", rng.choice((-32767, 32767, 0))) + b"\0" * 4),
+                     (3, lambda: struct.pack("<i", rng.choice((-2 ** 31 + 1, 2 ** 31 - 1, 0))) + b"\0" * 4)):
+        for k, (bound, effort_scale) in enumerate(((0, 0), (0, 12), (0, 24), (1 + 4 * 60, 0), (3 + 4 * 255, 24))):
+            w, h = rng.randrange(4, 24), rng.randrange(4, 24)
+            head = bytes([w - 1, h - 1, 0x80 | st, rng.randrange(7), bound % 256, effort_scale + k % 12])
+            put("roundtrip", f"wide_t{st}_{k}_{rng.randrange(1 << 16):04x}", head + b"".join(make() for _ in range(w * h)))
 print("seeds in", out)

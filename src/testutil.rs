@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 // The one test generator, shared with the integration tests and the benches.
 #[path = "../tests/common/shared.rs"]
 mod shared;
-pub use shared::{Rng, assert_same, skip};
+pub use shared::{Rng, assert_same, proptest_config, skip};
 
 /// The shared corpus directory, or `None` (with a message) when it is absent.
 pub fn corpus() -> Option<PathBuf> {

@@ -285,7 +285,7 @@ fn out_of_range_header_fields_are_rejected() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(64))]
+    #![proptest_config(common::proptest_config(64))]
 
     #[test]
     fn container_round_trips_random_sections(
@@ -362,4 +362,241 @@ fn float_samples_half_a_step_between_levels_stay_quantized() {
         let back = vtz::decode(&bytes).unwrap();
         assert!(vtz::metrics::compare(&r, &back).unwrap().max_error <= e);
     }
+}
+
+// ------------------------------------------------ stored values off the sample type's lattice
+
+/// A version-1 i16 file with flat regions (a plateau at 800 coded within 1 by the residual
+/// layer): its container, the flat section's index.
+fn i16_file_with_flat_regions() -> (File, usize) {
+    // A constant 80 × 96 block (flat regions have at least 4096 samples) beside a slope.
+    let data = (0..128 * 96)
+        .map(|i| {
+            if i % 128 < 80 {
+                800.0
+            } else {
+                (200 + i % 128 + (i / 128) % 7) as f64
+            }
+        })
+        .collect();
+    let r = Raster::from_values(128, 96, data, None, SampleType::I16).unwrap();
+    let bytes = vtz::encode(
+        &r,
+        &encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(1.0))),
+    )
+    .unwrap();
+    let c = container::read(&bytes, Limits::default()).unwrap();
+    let flat = c
+        .sections
+        .iter()
+        .position(|s| s.kind == SectionKind::FLAT)
+        .expect("a flat section");
+    (
+        File {
+            header: c.header,
+            sections: c.sections,
+        },
+        flat,
+    )
+}
+
+/// A file's header and sections, to edit and write back (checksums recomputed).
+#[derive(Clone)]
+struct File {
+    header: Header,
+    sections: Vec<Section>,
+}
+
+/// `vtz verify`, `vtz decode -o x.tif` and `-o x.f32` of `file` each exit 1 with one line
+/// that contains every one of `words`, and leave no output behind.
+fn refused_by_the_cli(file: &[u8], words: &[&str]) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = common::tmp(&dir, "hostile.vtz");
+    std::fs::write(&path, file).unwrap();
+    let mut runs = vec![(vec!["verify".to_string(), path.clone()], None)];
+    for ext in ["tif", "f32"] {
+        let out = common::tmp(&dir, &format!("x.{ext}"));
+        runs.push((
+            vec!["decode".into(), path.clone(), "-o".into(), out.clone()],
+            Some(out),
+        ));
+    }
+    for (args, out) in runs {
+        let o = common::vtz(&args);
+        let err = common::stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+        // `verify` reports each file on stdout ("FILE: FAILED: why"), its summary on stderr.
+        let why = if out.is_none() {
+            String::from_utf8_lossy(&o.stdout).into_owned()
+        } else {
+            err.clone()
+        };
+        assert_eq!(why.trim_end().lines().count(), 1, "{args:?}: {why}");
+        for w in words {
+            assert!(why.contains(w), "{args:?}: '{w}' not in: {why}");
+        }
+        if let Some(out) = out {
+            let left: Vec<_> = std::fs::read_dir(dir.path())
+                .unwrap()
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .filter(|n| n != "hostile.vtz")
+                .collect();
+            assert!(left.is_empty(), "{args:?} left {left:?} ({out})");
+        }
+    }
+}
+
+/// Issue 35, item 15: a flat region's value must be a value of the file's sample type. An
+/// i16 file whose flat section (checksums right) gives a region the f64 value 2.1e-314
+/// was decoded (`verify` said ok, a `.tif` rounded it, a `.f32` exited 2); it is corrupt.
+#[test]
+fn a_flat_region_value_off_the_sample_types_lattice_is_corrupt() {
+    let (c, flat) = i16_file_with_flat_regions();
+    // The region values follow coding, 3 reserved bytes, the count and two u64 counts.
+    let regions = u32::from_le_bytes(c.sections[flat].payload[4..8].try_into().unwrap()) as usize;
+    assert!(regions >= 1);
+    let good = container::write(&c.header, &c.sections);
+    assert!(vtz::decode(&good).is_ok());
+    for (v, mapping) in [
+        (2.1e-314f64, None),
+        (800.5, None),
+        (40000.0, None),
+        // On the integers but not on a mapped lattice: codes × 0.5 − 10.
+        (
+            801.25,
+            Some(ValueMapping {
+                scale: 0.5,
+                offset: -10.0,
+            }),
+        ),
+    ] {
+        let mut c = c.clone();
+        if let Some(m) = mapping {
+            c.header.mapping = m;
+            // The range must stay on the mapped lattice (it is checked too).
+            c.header.range = Some((-10.0, 800.0));
+        }
+        let k = 24 + 8 * (regions - 1);
+        c.sections[flat].payload[k..k + 8].copy_from_slice(&v.to_le_bytes());
+        let bad = container::write(&c.header, &c.sections);
+        let e = vtz::decode(&bad).unwrap_err();
+        assert!(matches!(e, Error::Corrupt { .. }), "{v}: {e}");
+        let msg = e.to_string();
+        assert!(
+            msg.contains("flat section") && msg.contains(&format!("{v:?}")),
+            "{msg}"
+        );
+        if mapping.is_none() {
+            assert!(msg.contains("i16"), "{msg}");
+        }
+    }
+    let mut c = c.clone();
+    let k = 24 + 8 * (regions - 1);
+    c.sections[flat].payload[k..k + 8].copy_from_slice(&2.1e-314f64.to_le_bytes());
+    refused_by_the_cli(
+        &container::write(&c.header, &c.sections),
+        &["flat section", "2.1e-314", "i16"],
+    );
+}
+
+/// The header's range (min, max of the valid samples) must be two values of the sample
+/// type: 2.5 in an i16 file, a value off a mapped u16 lattice, or one no f32 holds is corrupt;
+/// the encoder refuses a raster whose extreme samples are not values of its type.
+#[test]
+fn a_header_range_off_the_sample_types_lattice_is_corrupt() {
+    let (c, _) = i16_file_with_flat_regions();
+    let (lo, hi) = c.header.range.unwrap();
+    for (range, st, mapping) in [
+        ((lo, hi + 0.5), SampleType::I16, ValueMapping::default()),
+        ((lo - 0.25, hi), SampleType::I16, ValueMapping::default()),
+        ((lo, 40000.0), SampleType::I16, ValueMapping::default()),
+        (
+            (-32768.0, 0.1),
+            SampleType::U16,
+            ValueMapping {
+                scale: 1.0,
+                offset: -32768.0,
+            },
+        ),
+    ] {
+        let mut c = c.clone();
+        c.header.range = Some(range);
+        c.header.sample_type = st;
+        c.header.mapping = mapping;
+        let bad = container::write(&c.header, &c.sections);
+        let e = vtz::decode(&bad).unwrap_err();
+        assert!(matches!(e, Error::Corrupt { .. }), "{range:?}: {e}");
+        assert!(e.to_string().contains("not a value of"), "{e}");
+    }
+    let mut c = c.clone();
+    c.header.range = Some((lo, hi + 0.5));
+    refused_by_the_cli(
+        &container::write(&c.header, &c.sections),
+        &["maximum", &format!("{:?}", hi + 0.5), "i16"],
+    );
+    // f32: a range end no f32 holds.
+    let r = common::terrain(Kind::Fbm, 20, 20, 1, false, SampleType::F32);
+    let bytes = vtz::encode(&r, &EncodeOptions::default()).unwrap();
+    let mut c = container::read(&bytes, Limits::default()).unwrap();
+    c.header.range = Some((0.1, 1000.0));
+    let e = vtz::decode(&container::write(&c.header, &c.sections)).unwrap_err();
+    assert!(
+        e.to_string().contains("minimum 0.1 is not a value of f32"),
+        "{e}"
+    );
+    // The encoder writes only values of the type, even for a raster built with others (an
+    // i16 raster holding 2.5 as its minimum, an f32 one holding f64 numbers): it refuses
+    // (lossless) or writes a file that decodes, its range rounded to the type as its samples.
+    let mut data = vec![7.0; 100];
+    data[17] = 2.5;
+    let r = Raster::from_values(10, 10, data, None, SampleType::I16).unwrap();
+    assert!(vtz::encode(&r, &EncodeOptions::default()).is_err());
+    let grid = vtz::encode(&r, &encode_opts(&[Method::GRID], None)).unwrap_err();
+    assert!(
+        grid.to_string()
+            .contains("sample 17's value 2.5 is not a value of i16"),
+        "{grid}"
+    );
+    let bytes = vtz::encode(&r, &encode_opts(&[], Some(ErrorBound::Abs(1.0)))).unwrap();
+    let back = vtz::decode(&bytes).unwrap();
+    assert!(
+        back.data.iter().all(|&v| v.fract() == 0.0),
+        "{:?}",
+        back.data
+    );
+    let data: Vec<f64> = (0..100).map(|i| 0.1 * i as f64).collect();
+    let r = Raster::from_values(10, 10, data, None, SampleType::F32).unwrap();
+    let bytes = vtz::encode(&r, &encode_opts(&[], Some(ErrorBound::Abs(0.01)))).unwrap();
+    assert!(vtz::decode(&bytes).is_ok());
+}
+
+/// A tiled file's per-tile range (in the tile index, checksum recomputed) must be two
+/// values of the sample type.
+#[test]
+fn a_tile_range_off_the_sample_types_lattice_is_corrupt() {
+    let r = common::terrain(Kind::Fbm, 300, 200, 4, false, SampleType::I16);
+    let mut o = encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(1.0)));
+    o.tile = Some(128);
+    let bytes = vtz::encode(&r, &o).unwrap();
+    assert!(vtz::decode(&bytes).is_ok());
+    // The index ends the file: the tile count N, N entries of 56 bytes (min at +32), a CRC.
+    let (start, n) = (1..4096)
+        .map(|n| (bytes.len() - 8 - 56 * n, n))
+        .find(|&(at, n)| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize == n)
+        .expect("a tile index");
+    assert!(n >= 4, "{n} tiles");
+    let mut bad = bytes.clone();
+    let at = start + 4 + 56 * (n - 1) + 32;
+    bad[at..at + 8].copy_from_slice(&0.5f64.to_le_bytes());
+    let end = start + 4 + 56 * n;
+    let crc = crc32fast::hash(&bad[start..end]);
+    bad[end..end + 4].copy_from_slice(&crc.to_le_bytes());
+    let e = vtz::decode(&bad).unwrap_err();
+    assert!(matches!(e, Error::Corrupt { .. }), "{e}");
+    assert!(
+        e.to_string().contains("minimum 0.5 is not a value of i16"),
+        "{e}"
+    );
+    refused_by_the_cli(&bad, &["tile index", "0.5", "i16"]);
 }

@@ -3,6 +3,8 @@
 //! exactly what the edited header describes; never panic, never read outside a payload
 //! (Rust's bounds checks turn such a read into a panic, which this test would catch).
 
+mod common;
+
 use proptest::prelude::*;
 use std::io::Cursor;
 use vtz::internals::container::{self, Header, SectionKind};
@@ -81,7 +83,7 @@ fn apply(h: &mut Header, sections: &mut [container::Section], e: &Edit) {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(400))]
+    #![proptest_config(common::proptest_config(400))]
 
     #[test]
     fn edited_headers_with_fresh_checksums_decode_as_described_or_fail(

@@ -200,7 +200,7 @@ fn shape() -> impl Strategy<Value = Shape> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+    #![proptest_config(common::proptest_config(48))]
 
     /// Every shape, with duplicates (points drawn with replacement share positions, with
     /// different values), national-grid offsets, one or two columns.
@@ -234,7 +234,7 @@ proptest! {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 12, ..ProptestConfig::default() })]
+    #![proptest_config(common::proptest_config(12))]
 
     /// The same shapes through the CLI: XYZ text in (national-grid coordinates in
     /// centimetres, duplicates included), CSV out, every point within the bound.

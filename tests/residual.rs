@@ -44,8 +44,67 @@ fn check(r: &Raster, back: &Raster, bound: f64, what: &str) {
     }
 }
 
+/// One case of [`random_rasters_keep_the_bound_and_lossless_is_exact`]: the residual layer
+/// keeps `bound` (0: lossless, exactly) at `effort` on a synthetic raster, or, for f64 noise
+/// without a lattice, says so and `best` stores it losslessly.
+#[allow(clippy::too_many_arguments)]
+fn random_raster_case(
+    kind: Kind,
+    w: usize,
+    h: usize,
+    seed: u64,
+    holes: bool,
+    st: SampleType,
+    bound: f64,
+    effort: u8,
+) -> Result<(), TestCaseError> {
+    let r = terrain(kind, w, h, seed, holes, st);
+    if r.valid_count() == 0 {
+        return Ok(());
+    }
+    let b = if bound == 0.0 { None } else { Some(bound) };
+    if b.is_none() && st != SampleType::I16 {
+        // f64 noise has no lattice within ±2^38 steps, nor has f32 data whose smallest
+        // magnitudes need a power-of-two step below 2^-38 of its largest: the residual
+        // layer says so (f64 always), and `best` stores it losslessly with the grid.
+        let mut o = encode_opts(&[Method::RESIDUAL], None);
+        o.effort = Some(effort);
+        match vtz::encode(&r, &o) {
+            Ok(bytes) if st == SampleType::F32 => {
+                check(&r, &vtz::decode(&bytes).unwrap(), 0.0, "f32 lossless");
+            }
+            Ok(_) => prop_assert!(false, "f64 noise has no lattice"),
+            Err(e) => prop_assert!(matches!(e, vtz::Error::Unmet { .. }), "{}", e),
+        }
+        let bytes = vtz::encode(&r, &encode_opts(&[], None)).unwrap();
+        check(
+            &r,
+            &vtz::decode(&bytes).unwrap(),
+            0.0,
+            "float lossless with best",
+        );
+        return Ok(());
+    }
+    let (bytes, back) = residual(&r, b, effort);
+    check(
+        &r,
+        &back,
+        bound,
+        &format!("{kind:?} {w}x{h} {st:?} bound {bound} effort {effort}"),
+    );
+    // The decoder is deterministic, and every proper prefix is an error.
+    prop_assert_eq!(
+        common::bits(&vtz::decode(&bytes).unwrap()),
+        common::bits(&back)
+    );
+    for n in (0..bytes.len()).step_by(1 + bytes.len() / 40) {
+        prop_assert!(vtz::decode(&bytes[..n]).is_err());
+    }
+    Ok(())
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(48))]
+    #![proptest_config(common::proptest_config(48))]
     #[test]
     fn random_rasters_keep_the_bound_and_lossless_is_exact(
         kind in prop::sample::select(vec![Kind::Fbm, Kind::Plateau, Kind::Cliff, Kind::Constant, Kind::Hill]),
@@ -57,30 +116,148 @@ proptest! {
         bound in prop::sample::select(vec![0.0, 0.3, 0.5, 1.0, 2.5, 7.0, 60.0]),
         effort in prop::sample::select(vec![1u8, 3, 5, 9]),
     ) {
-        let r = terrain(kind, w, h, seed, holes, st);
+        random_raster_case(kind, w, h, seed, holes, st, bound, effort)?;
+    }
+}
+
+/// The random search's finds (issue 35, item 0), kept as plain tests: f32 rasters whose
+/// lattice (a power-of-two step fine enough for every sample) spans ~2^38 steps, where the
+/// fast coding's stencil fit squared residuals of ~2^37 in i64 (`attempt to multiply with
+/// overflow` under overflow checks, wrapped silently in release builds).
+#[test]
+fn found_a_hill_of_f32_at_lossless_effort_9() {
+    random_raster_case(Kind::Hill, 36, 62, 0, false, SampleType::F32, 0.0, 9).unwrap();
+}
+
+#[test]
+fn found_a_hill_of_f32_at_60_effort_1() {
+    random_raster_case(Kind::Hill, 34, 38, 0, false, SampleType::F32, 60.0, 1).unwrap();
+}
+
+/// Found by `tests/random_search.sh` (now in tests/residual.proptest-regressions): an f32
+/// hill whose samples near 0 need a power-of-two step finer than 2^-38 of its peak has no
+/// lattice within the section's ±2^38; the residual layer says so (`Unmet`) and `best`
+/// stores it losslessly.
+#[test]
+fn found_a_hill_of_f32_without_a_lattice_is_stored_losslessly_by_best() {
+    random_raster_case(Kind::Hill, 69, 52, 0, false, SampleType::F32, 0.0, 1).unwrap();
+}
+
+/// A raster whose values span lattices as wide as the residual layer takes (whole numbers
+/// to ±2^38, alternating extremes) and far wider (f32 over ±3e38, f64 over ±1e300 and raw
+/// f64 bits, mixed signs): `pattern` picks which, `seed` the samples.
+fn wide_raster(pattern: u8, w: usize, h: usize, seed: u64, holes: bool) -> Raster {
+    let mut rng = common::Rng(seed);
+    let m = (1u64 << 38) as f64;
+    let sign = |rng: &mut common::Rng| if rng.below(2) == 0 { 1.0 } else { -1.0 };
+    let (st, data): (SampleType, Vec<f64>) = match pattern % 6 {
+        0 => (
+            SampleType::F32,
+            (0..w * h)
+                .map(|i| if (i + i / w) % 2 == 0 { m } else { -m })
+                .collect(),
+        ),
+        1 => {
+            let ext = [m, -m, 0.0, m / 2.0, -m / 2.0, m - 1.0];
+            (
+                SampleType::F64,
+                (0..w * h).map(|_| ext[rng.below(6) as usize]).collect(),
+            )
+        }
+        2 => (
+            SampleType::F32,
+            (0..w * h)
+                .map(|_| (sign(&mut rng) * 10f64.powf(rng.unit() * 76.5 - 38.0)) as f32 as f64)
+                .collect(),
+        ),
+        3 => (
+            SampleType::F64,
+            (0..w * h)
+                .map(|_| sign(&mut rng) * 10f64.powf(rng.unit() * 600.0 - 300.0))
+                .collect(),
+        ),
+        4 => (
+            SampleType::F64,
+            (0..w * h)
+                .map(|_| f64::from_bits(rng.next()))
+                .map(|v| if v.is_finite() { v } else { 0.0 })
+                .collect(),
+        ),
+        _ => {
+            let ext = [3.4e38, -3.4e38, 1e-38, -1e-38, 0.0, m, -m];
+            (
+                SampleType::F32,
+                (0..w * h)
+                    .map(|_| ext[rng.below(7) as usize] as f32 as f64)
+                    .collect(),
+            )
+        }
+    };
+    let data = data
+        .into_iter()
+        .enumerate()
+        .map(|(i, v)| if holes && i % 9 == 4 { f64::NAN } else { v })
+        .collect();
+    Raster::from_values(w, h, data, None, st).unwrap()
+}
+
+proptest! {
+    #![proptest_config(common::proptest_config(32))]
+    /// Issue 35: lattices spanning the full range. Every residual coding (efforts 1, 5, 9),
+    /// lossless and within bounds from a step's fraction to 1e30, either keeps the bound
+    /// (exactly when lossless, the decode deterministic) or says it cannot (`Unmet`),
+    /// never overflows (the ci profile checks); `best` always stores the raster within the
+    /// bound.
+    #[test]
+    fn lattices_spanning_the_full_range_keep_the_bound_or_say_so(
+        pattern in 0u8..6,
+        w in 1usize..40,
+        h in 1usize..40,
+        seed in any::<u64>(),
+        holes in any::<bool>(),
+        bound in prop::sample::select(vec![0.0, 0.5, 1.0, 1e6, 1e30]),
+        effort in prop::sample::select(vec![1u8, 5, 9]),
+    ) {
+        let r = wide_raster(pattern, w, h, seed, holes);
         if r.valid_count() == 0 {
             return Ok(());
         }
-        let b = if bound == 0.0 { None } else { Some(bound) };
-        if b.is_none() && st == SampleType::F64 {
-            // f64 noise has no lattice within ±2^38 steps: the residual layer says so, and
-            // `best` stores it losslessly with the grid.
-            let mut o = encode_opts(&[Method::RESIDUAL], None);
-            o.effort = Some(effort);
-            let e = vtz::encode(&r, &o).unwrap_err();
-            prop_assert!(matches!(e, vtz::Error::Unmet { .. }), "{}", e);
-            let bytes = vtz::encode(&r, &encode_opts(&[], None)).unwrap();
-            check(&r, &vtz::decode(&bytes).unwrap(), 0.0, "f64 lossless with best");
-            return Ok(());
+        let b = (bound > 0.0).then_some(bound);
+        let mut o = encode_opts(&[Method::RESIDUAL], b.map(ErrorBound::Abs));
+        o.effort = Some(effort);
+        let what = format!("pattern {pattern} {w}x{h} seed {seed} bound {bound} effort {effort}");
+        match vtz::encode(&r, &o) {
+            Ok(bytes) => {
+                let back = vtz::decode(&bytes).unwrap();
+                check(&r, &back, bound, &what);
+                prop_assert_eq!(common::bits(&vtz::decode(&bytes).unwrap()), common::bits(&back));
+            }
+            Err(e) => prop_assert!(matches!(e, vtz::Error::Unmet { .. }), "{}: {}", what, e),
         }
-        let (bytes, back) = residual(&r, b, effort);
-        check(&r, &back, bound, &format!("{kind:?} {w}x{h} {st:?} bound {bound} effort {effort}"));
-        // The decoder is deterministic, and every proper prefix is an error.
-        prop_assert_eq!(common::bits(&vtz::decode(&bytes).unwrap()), common::bits(&back));
-        for n in (0..bytes.len()).step_by(1 + bytes.len() / 40) {
-            prop_assert!(vtz::decode(&bytes[..n]).is_err());
+        if b.is_none() {
+            // Lossless, `best` always finds a coding (the grid's bit keys at worst). (With a
+            // bound far above the range the Haar encoder does not finish on such data:
+            // `haar_with_a_bound_far_above_the_range_finishes` below.)
+            let mut o = encode_opts(&[], None);
+            o.effort = Some(effort);
+            let bytes = vtz::encode(&r, &o).unwrap();
+            check(&r, &vtz::decode(&bytes).unwrap(), 0.0, &format!("best: {what}"));
         }
     }
+}
+
+/// Found by the random search of `lattices_spanning_the_full_range_keep_the_bound_or_say_so`
+/// (with `best` at every bound): f32 samples alternating between ±2^38 with a max error of
+/// 1e30, far above their range, and the Haar encoder does not finish (over 20 s on 39 × 39
+/// samples, also before issue 35's changes; in `encode_bound`, outside the residual layer).
+/// Ignored until the Haar encoder is fixed; `cargo test -- --ignored` runs it.
+#[test]
+#[ignore = "the Haar encoder does not finish with a bound far above the range (open)"]
+fn haar_with_a_bound_far_above_the_range_finishes() {
+    let r = wide_raster(0, 39, 39, 0, false);
+    let o = encode_opts(&[Method::HAAR], Some(ErrorBound::Abs(1e30)));
+    let bytes = vtz::encode(&r, &o).unwrap();
+    check(&r, &vtz::decode(&bytes).unwrap(), 1e30, "haar at 1e30");
 }
 
 #[test]
@@ -384,7 +561,7 @@ fn info_stats_describe_the_residual_section() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(24))]
+    #![proptest_config(common::proptest_config(24))]
     #[test]
     fn whole_metres_with_a_few_fractions_are_lossless_with_exceptions(
         w in 8usize..60,

@@ -22,7 +22,7 @@ fn check_bound(r: &Raster, back: &Raster, e: f64) {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(24))]
+    #![proptest_config(common::proptest_config(24))]
 
     #[test]
     fn bound_holds_and_decoding_is_deterministic(

@@ -2,7 +2,10 @@
 //! (the residual layer's fast coding, its default, both), every sample type,
 //! nodata holes, absolute and percent bounds and lossless. The decode must have the source's
 //! shape, type and nodata pattern, every valid sample within the bound the encoder reports
-//! (and within the requested bound), and a window decode must equal the crop.
+//! (and within the requested bound), and a window decode must equal the crop. With the top
+//! bit of the type byte set ("wide"), samples are raw bits instead (f32 or f64 bits, any
+//! magnitude up to ±3.4e38 or ±1.8e308, non-finite ones holes; integer codes over the
+//! type's whole range): lattices as wide as the format allows and none at all.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -17,9 +20,10 @@ fuzz_target!(|data: &[u8]| {
     }
     let width = 1 + data[0] as usize % 24;
     let height = 1 + data[1] as usize % 24;
-    let Some(st) = SampleType::from_code(data[2] % 6) else {
+    let Some(st) = SampleType::from_code((data[2] & 0x7f) % 6) else {
         return;
     };
+    let wide = data[2] & 0x80 != 0;
     let methods: Vec<Method> = Method::all().collect();
     let pick = data[3] as usize % (methods.len() + 1);
     let bound_code = data[4];
@@ -31,6 +35,20 @@ fuzz_target!(|data: &[u8]| {
     let (lo, hi) = st.int_range().unwrap_or((-1e6, 1e6));
     let mut values = Vec::with_capacity(n);
     for i in 0..n {
+        if wide {
+            let b = |k: usize| body.get(8 * i + k).copied().unwrap_or(0);
+            let b8: [u8; 8] = std::array::from_fn(b);
+            let v = match st {
+                SampleType::F32 => f32::from_le_bytes([b8[0], b8[1], b8[2], b8[3]]) as f64,
+                SampleType::F64 => f64::from_le_bytes(b8),
+                _ => {
+                    let code = i32::from_le_bytes([b8[0], b8[1], b8[2], b8[3]]) as f64;
+                    code.rem_euclid(hi - lo + 1.0) + lo
+                }
+            };
+            values.push(if v.is_finite() { v } else { f64::NAN });
+            continue;
+        }
         let b = |k: usize| body.get(2 * i + k).copied().unwrap_or(0);
         let raw = i16::from_le_bytes([b(0), b(1)]);
         let v = if raw == i16::MIN {

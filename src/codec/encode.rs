@@ -101,6 +101,17 @@ pub(crate) fn encode_parts(
         }
         _ => None,
     };
+    // A flat region's value is stored as every one of its samples' value, and a decoder
+    // rejects one that is not a value of the sample type (spec/FORMAT.md). The samples of
+    // a raster read from a file are; a region of other values (a raster built with them)
+    // is left to the method, which rounds its values to the type as every other sample's.
+    let flat = flat.and_then(|mut f| {
+        let (st, m) = (raster.sample_type, raster.mapping);
+        f.iter_mut()
+            .filter(|v| !v.is_nan() && !st.holds(**v, m))
+            .for_each(|v| *v = f64::NAN);
+        f.iter().any(|v| !v.is_nan()).then_some(f)
+    });
     let masked;
     let (source, raster) = match &flat {
         Some(f) => {

@@ -7,6 +7,7 @@ use super::bitmap;
 use super::bytes::{ByteReader, PutLe};
 use crate::error::Result;
 use crate::model::flat::{BLOCK, label_runs};
+use crate::model::{SampleType, ValueMapping};
 
 /// Coding 0: the bitmap of valid samples, range coded with neighbour contexts.
 const CODING_CONTEXT: u8 = 0;
@@ -149,8 +150,15 @@ impl Flat {
 }
 
 /// Decode a flat-regions payload for a `w`-wide raster of `n` samples whose validity is
-/// `mask`.
-pub fn decode(payload: &[u8], w: usize, n: usize, mask: Option<&[bool]>) -> Result<Flat> {
+/// `mask`, of sample type `st` under the value mapping `mapping` (each region's value must
+/// be a value of it).
+pub fn decode(
+    payload: &[u8],
+    w: usize,
+    n: usize,
+    mask: Option<&[bool]>,
+    (st, mapping): (SampleType, ValueMapping),
+) -> Result<Flat> {
     let mut r = ByteReader::new(payload, "flat section");
     let coding = r.u8("coding")?;
     if coding != CODING_CONTEXT && coding != CODING_BLOCKS {
@@ -180,6 +188,12 @@ pub fn decode(payload: &[u8], w: usize, n: usize, mask: Option<&[bool]>) -> Resu
         .collect();
     if values.iter().any(|v| !v.is_finite()) {
         return Err(r.corrupt("a region value is not finite"));
+    }
+    // A region's value is every one of its samples' decoded value, written as stored: it
+    // must be a value of the sample type (an i16 file's region cannot hold 2.1e-314).
+    for (k, &v) in values.iter().enumerate() {
+        st.check_holds(&format!("region {k}'s value"), v, mapping)
+            .map_err(|m| r.corrupt(m))?;
     }
     if mask.is_some_and(|m| m.len() != n) {
         return Err(r.corrupt("mask size differs"));
@@ -228,6 +242,14 @@ pub fn decode(payload: &[u8], w: usize, n: usize, mask: Option<&[bool]>) -> Resu
 mod tests {
     use super::*;
 
+    const F64: (SampleType, ValueMapping) = (
+        SampleType::F64,
+        ValueMapping {
+            scale: 1.0,
+            offset: 0.0,
+        },
+    );
+
     #[test]
     fn regions_round_trip_and_prefixes_fail() {
         // Two touching-free regions and a hole.
@@ -244,7 +266,7 @@ mod tests {
         }
         let p = encode_samples(&v, w, None);
         assert_eq!(p[0], CODING_CONTEXT);
-        let flat = decode(&p, w, w * h, None).unwrap();
+        let flat = decode(&p, w, w * h, None, F64).unwrap();
         let back = flat.dense();
         for (i, (a, b)) in v.iter().zip(&back).enumerate() {
             assert!(a == b || (a.is_nan() && b.is_nan()));
@@ -269,19 +291,22 @@ mod tests {
             }
         }
         for cut in 0..p.len() {
-            assert!(decode(&p[..cut], w, w * h, None).is_err(), "prefix {cut}");
+            assert!(
+                decode(&p[..cut], w, w * h, None, F64).is_err(),
+                "prefix {cut}"
+            );
         }
         // With a mask, nodata samples cost nothing and cannot be flat.
         let mut mask = vec![true; w * h];
         mask[w * h - 1] = false;
         v[w * h - 1] = f64::NAN;
         let p = encode_samples(&v, w, Some(&mask));
-        let back = decode(&p, w, w * h, Some(&mask)).unwrap().dense();
+        let back = decode(&p, w, w * h, Some(&mask), F64).unwrap().dense();
         for (a, b) in v.iter().zip(&back) {
             assert!(a == b || (a.is_nan() && b.is_nan()));
         }
         // The wrong sample count is rejected.
-        assert!(decode(&p, w, w * h - 1, None).is_err());
+        assert!(decode(&p, w, w * h - 1, None, F64).is_err());
     }
 
     /// A jagged shore of a sea of 0 and a lake: the flat samples as `model::flat::find`
@@ -320,7 +345,7 @@ mod tests {
             .collect();
         let p = encode(&kept, w, Some(&mask));
         assert_eq!(p[0], CODING_BLOCKS);
-        let back = decode(&p, w, w * h, Some(&mask)).unwrap().dense();
+        let back = decode(&p, w, w * h, Some(&mask), F64).unwrap().dense();
         for (a, b) in kept.iter().zip(&back) {
             assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));
         }
@@ -339,7 +364,7 @@ mod tests {
         );
         for cut in 0..p.len() {
             assert!(
-                decode(&p[..cut], w, w * h, Some(&mask)).is_err(),
+                decode(&p[..cut], w, w * h, Some(&mask), F64).is_err(),
                 "prefix {cut}"
             );
         }

@@ -42,6 +42,14 @@ impl Header {
         if w > i32::MAX as u32 || h > i32::MAX as u32 {
             return Err(Error::limit("raster dimension over 2^31 - 1"));
         }
+        // A decoder rejects a range that is no pair of sample values (spec/FORMAT.md). The
+        // samples of a raster read from a file are values of its type; one built with other
+        // values (an f32 raster of f64 numbers) decodes to its type's values, and so does
+        // its range (rounding is monotone: min ≤ max stays).
+        let range = r.valid_range().map(|(lo, hi)| {
+            let near = |v| r.sample_type.nearest_value(v, r.mapping);
+            (near(lo), near(hi))
+        });
         Ok(Header {
             width: w,
             height: h,
@@ -49,7 +57,7 @@ impl Header {
             primary: 0,
             mapping: r.mapping,
             nodata: r.nodata,
-            range: r.valid_range(),
+            range,
             georef: r.georef.clone(),
         })
     }
@@ -165,6 +173,12 @@ impl Header {
             let hi = r.finite_f64("maximum")?;
             if lo > hi {
                 return Err(r.corrupt("minimum is above maximum"));
+            }
+            // The range is of sample values: each end a value of the sample type.
+            for (what, v) in [("minimum", lo), ("maximum", hi)] {
+                sample_type
+                    .check_holds(what, v, ValueMapping { scale, offset })
+                    .map_err(|m| r.corrupt(m))?;
             }
             Some((lo, hi))
         } else {

@@ -114,6 +114,7 @@ mod tests {
     use proptest::prelude::*;
 
     proptest! {
+        #![proptest_config(crate::testutil::proptest_config(256))]
         #[test]
         fn masks_round_trip(mask in proptest::collection::vec(proptest::bool::weighted(0.8), 1..3000)) {
             let enc = encode(&mask, 7);

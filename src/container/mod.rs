@@ -323,7 +323,16 @@ impl<R: Read + Seek> ContainerReader<R> {
         let n = self.header.samples() as usize;
         let w = self.header.width as usize;
         match self.find(SectionKind::FLAT) {
-            Some(i) => Ok(Some(flat::decode(&self.read_section(i)?, w, n, mask)?)),
+            Some(i) => {
+                let lattice = (self.header.sample_type, self.header.mapping);
+                Ok(Some(flat::decode(
+                    &self.read_section(i)?,
+                    w,
+                    n,
+                    mask,
+                    lattice,
+                )?))
+            }
             None => Ok(None),
         }
     }

@@ -592,6 +592,13 @@ impl<R: Read + Seek> TiledReader<R> {
                 if !(lo.is_finite() && hi.is_finite() && lo <= hi) || valid == 0 {
                     return Err(t(format!("range {lo}..{hi} is not valid")));
                 }
+                // The range is of sample values: each end a value of the sample type.
+                for (what, v) in [("minimum", lo), ("maximum", hi)] {
+                    header
+                        .sample_type
+                        .check_holds(what, v, header.mapping)
+                        .map_err(t)?;
+                }
                 Some((lo, hi))
             } else {
                 if valid != 0 || lo.to_bits() != 0 || hi.to_bits() != 0 {

@@ -727,6 +727,7 @@ mod tests {
     }
 
     proptest! {
+        #![proptest_config(crate::testutil::proptest_config(256))]
         #[test]
         fn uint_round_trip(values in prop::collection::vec(any_magnitude_u64(), 0..300)) {
             let bytes = encode_all(&values, UIntModel::encode);

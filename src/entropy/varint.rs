@@ -88,6 +88,7 @@ mod tests {
     use proptest::prelude::*;
 
     proptest! {
+        #![proptest_config(crate::testutil::proptest_config(256))]
         #[test]
         fn varints_round_trip(vals in proptest::collection::vec(any::<i64>(), 0..200)) {
             let mut buf = Vec::new();

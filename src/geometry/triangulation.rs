@@ -562,7 +562,7 @@ mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(2000))]
+        #![proptest_config(crate::testutil::proptest_config(2000))]
         #[test]
         fn filtered_incircle_has_the_exact_sign(
             a in (-300i64..300, -300i64..300), b in (-300i64..300, -300i64..300),
@@ -588,7 +588,7 @@ mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(48))]
+        #![proptest_config(crate::testutil::proptest_config(48))]
         #[test]
         fn random_insertions_stay_delaunay(pts in proptest::collection::vec((0i64..40, 0i64..40), 3..120)) {
             let mut tr = Triangulation::new();

@@ -90,6 +90,53 @@ impl SampleType {
             _ => None,
         }
     }
+    /// The value of this type nearest `v` under the value mapping `m`, as every decoder
+    /// produces its samples: f32 rounding; for integer types the nearest code
+    /// `round((v − offset) / scale)` clamped to the type's range, mapped back as
+    /// `offset + scale · code`; f64 unchanged.
+    #[inline]
+    pub fn nearest_value(self, v: f64, m: ValueMapping) -> f64 {
+        match self {
+            SampleType::F32 => v as f32 as f64,
+            SampleType::F64 => v,
+            st => {
+                let (lo, hi) = st.int_range().expect("integer type");
+                let code = ((v - m.offset) / m.scale).round().clamp(lo, hi);
+                m.offset + m.scale * code
+            }
+        }
+    }
+    /// Whether `v` is a value of this type under the value mapping `m`: finite and what
+    /// [`SampleType::nearest_value`] leaves unchanged (integer types: `offset + scale · code`
+    /// for an integer code in the type's range, computed as a decoder computes it; f32:
+    /// exactly an f32; f64: any finite number). A value a file stores as a sample's value
+    /// (a flat region's, a range's ends) must be one, or the file is corrupt.
+    pub fn holds(self, v: f64, m: ValueMapping) -> bool {
+        v.is_finite() && self.nearest_value(v, m) == v
+    }
+    /// `Ok` when `v` is a value of this type under `m` ([`SampleType::holds`]), else the
+    /// reason, naming `what` and the value: "<what> 2.1e-314 is not a value of i16".
+    pub(crate) fn check_holds(
+        self,
+        what: &str,
+        v: f64,
+        m: ValueMapping,
+    ) -> std::result::Result<(), String> {
+        if self.holds(v, m) {
+            return Ok(());
+        }
+        let of = if self.is_integer() && !m.is_identity() {
+            format!(
+                "{} codes mapped by value = {:?} + {:?}·code",
+                self.name(),
+                m.offset,
+                m.scale
+            )
+        } else {
+            self.name().to_string()
+        };
+        Err(format!("{what} {v:?} is not a value of {of}"))
+    }
 }
 
 /// Whether a pixel value describes the whole cell (GeoTIFF `PixelIsArea`) or the point at

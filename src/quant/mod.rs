@@ -76,15 +76,7 @@ pub(crate) fn finish_value(v: f64, h: &Header) -> f64 {
 /// source code clamped to the integer type's range.
 #[inline]
 pub(crate) fn finish(v: f64, st: SampleType, m: ValueMapping) -> f64 {
-    match st {
-        SampleType::F32 => v as f32 as f64,
-        SampleType::F64 => v,
-        st => {
-            let (lo, hi) = st.int_range().expect("integer type");
-            let code = ((v - m.offset) / m.scale).round().clamp(lo, hi);
-            m.offset + m.scale * code
-        }
-    }
+    st.nearest_value(v, m)
 }
 
 /// The one bound check: the max error, sum of squares and mean absolute error of decoded

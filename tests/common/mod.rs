@@ -13,7 +13,9 @@ use vtz::{DecodeOptions, EncodeOptions, ErrorBound, Method, Raster, SampleType};
 // ---------------------------------------------------------------- random numbers
 
 mod shared;
-pub use shared::{Rng, assert_same, skip};
+pub use shared::{
+    PROPTEST_RANDOM, PROPTEST_SCALE, PROPTEST_SEED, Rng, assert_same, proptest_config, skip,
+};
 
 // ---------------------------------------------------------------- synthetic terrain
 

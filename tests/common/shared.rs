@@ -1,6 +1,7 @@
 //! What the unit tests (`src/testutil.rs` includes this file), the integration tests and the
 //! benches (`tests/common/mod.rs`) share: the one deterministic generator of test data
-//! (SplitMix64) and the one exact comparison of two rasters. The including module provides
+//! (SplitMix64), the one exact comparison of two rasters and the one configuration of
+//! property tests (a fixed seed unless the random search asks for one). The including module provides
 //! `Raster` (the crate's own or `vtz::Raster`).
 
 use super::Raster;
@@ -70,4 +71,79 @@ pub fn skip(why: &str) {
         panic!("{name}: {why} (VTZ_REQUIRE_SHARED=1)");
     }
     let _ = writeln!(std::io::stderr(), "SKIPPED {name}: {why}");
+}
+
+// ---------------------------------------------------------------- property tests
+
+/// Set to `1` for the random search (`tests/random_search.sh`): property tests draw from a
+/// random seed, run [`PROPTEST_SCALE`] times their cases, and persist what fails.
+pub const PROPTEST_RANDOM: &str = "VTZ_PROPTEST_RANDOM";
+/// How many times its cases a property test runs in the random search (default 8).
+pub const PROPTEST_SCALE: &str = "VTZ_PROPTEST_SCALE";
+/// The seed every property test draws from in a normal run.
+pub const PROPTEST_SEED: u64 = 0x7674_7a5f_6369_0035;
+
+/// The configuration of every property test (`#![proptest_config(common::proptest_config(n))]` in `tests/`, `crate::testutil::proptest_config(n)` in unit tests):
+/// in a normal run (CI, the README's test command) `cases` cases drawn from the fixed
+/// [`PROPTEST_SEED`], after the cases of the committed `*.proptest-regressions` file next to
+/// the test, which is read but never written. The same inputs on every run: a failure is a
+/// regression, not luck. With [`PROPTEST_RANDOM`]`=1` the random search: a random seed,
+/// `cases` × [`PROPTEST_SCALE`] cases, and a failure's seed appended to the regression file
+/// (commit it, and the shrunk input as a plain `#[test]`).
+pub fn proptest_config(cases: u32) -> proptest::test_runner::Config {
+    use proptest::test_runner::{Config, FileFailurePersistence, RngSeed};
+    let random = std::env::var(PROPTEST_RANDOM).is_ok_and(|v| v == "1");
+    let files = FileFailurePersistence::default();
+    if random {
+        let scale: u32 = std::env::var(PROPTEST_SCALE)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(8);
+        Config {
+            cases: cases.saturating_mul(scale.max(1)),
+            rng_seed: RngSeed::Random,
+            failure_persistence: Some(Box::new(files)),
+            ..Config::default()
+        }
+    } else {
+        Config {
+            cases,
+            rng_seed: RngSeed::Fixed(PROPTEST_SEED),
+            failure_persistence: Some(Box::new(ReadOnly(files))),
+            ..Config::default()
+        }
+    }
+}
+
+/// Failure persistence that replays the regression file's cases and never writes it.
+#[derive(Clone, Debug, PartialEq)]
+struct ReadOnly(proptest::test_runner::FileFailurePersistence);
+
+impl proptest::test_runner::FailurePersistence for ReadOnly {
+    fn load_persisted_failures2(
+        &self,
+        source_file: Option<&'static str>,
+    ) -> Vec<proptest::test_runner::PersistedSeed> {
+        self.0.load_persisted_failures2(source_file)
+    }
+
+    fn save_persisted_failure2(
+        &mut self,
+        _source_file: Option<&'static str>,
+        _seed: proptest::test_runner::PersistedSeed,
+        _shrunken_value: &dyn std::fmt::Debug,
+    ) {
+    }
+
+    fn box_clone(&self) -> Box<dyn proptest::test_runner::FailurePersistence> {
+        Box::new(self.clone())
+    }
+
+    fn eq(&self, other: &dyn proptest::test_runner::FailurePersistence) -> bool {
+        other.as_any().downcast_ref::<ReadOnly>() == Some(self)
+    }
+
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
 }

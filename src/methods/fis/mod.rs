@@ -1022,7 +1022,7 @@ mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(24))]
+        #![proptest_config(crate::testutil::proptest_config(24))]
 
         /// Any size, any bound: the decoded surface meets the bound the encoder reports, or
         /// the encoder says FIS cannot meet it.

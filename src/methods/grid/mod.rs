@@ -11,7 +11,7 @@ use crate::container::Header;
 use crate::container::bytes::{ByteReader, PutLe};
 use crate::entropy::{self, varint};
 use crate::error::{Error, Result};
-use crate::model::{Raster, SampleType};
+use crate::model::{Raster, SampleType, ValueMapping};
 use crate::predict::med::{CONTEXTS, context, predict};
 use crate::quant::height_of;
 
@@ -61,6 +61,9 @@ struct Dequant {
     step: f64,
     offset: f64,
     f32_out: bool,
+    /// An integer sample type and its value mapping: coding 0's values are rounded to it,
+    /// as every method's are (spec/FORMAT.md, grid section).
+    int_out: Option<(SampleType, ValueMapping)>,
 }
 
 impl Dequant {
@@ -69,7 +72,11 @@ impl Dequant {
         let v = match self.coding {
             CODING_INT => {
                 let v = height_of(code, self.step, self.offset);
-                if self.f32_out { v as f32 as f64 } else { v }
+                match self.int_out {
+                    Some((st, m)) if v.is_finite() => st.nearest_value(v, m),
+                    _ if self.f32_out => v as f32 as f64,
+                    _ => v,
+                }
             }
             CODING_F32 => f32_from_key(code)? as f64,
             _ => f64_from_key(code),
@@ -128,6 +135,7 @@ pub fn encode(r: &Raster, params: &GridParams) -> Result<(Vec<u8>, f64)> {
             step,
             offset,
             f32_out,
+            int_out: r.sample_type.is_integer().then_some((r.sample_type, r.mapping)),
         };
         int_codes(r, dq, tol).map(|c| (dq, c, tol))
     };
@@ -167,6 +175,19 @@ pub fn encode(r: &Raster, params: &GridParams) -> Result<(Vec<u8>, f64)> {
     }
     let (dq, codes, bound) = match chosen {
         Some(c) => c,
+        None if r.sample_type.is_integer() => {
+            // Integer codes reach every value of an integer type: a sample they miss is not
+            // one, and a decoder rejects bit keys that are not (spec/FORMAT.md).
+            let bad = (0..r.len())
+                .find(|&i| r.is_valid(i) && !r.sample_type.holds(r.data[i], r.mapping))
+                .unwrap_or(0);
+            return Err(Error::invalid(
+                r.sample_type
+                    .check_holds(&format!("sample {bad}'s value"), r.data[bad], r.mapping)
+                    .err()
+                    .unwrap_or_else(|| "the samples have no integer codes".to_string()),
+            ));
+        }
         None => {
             let (coding, codes): (u8, Vec<i64>) = match r.sample_type {
                 SampleType::F64 => (CODING_F64, r.data.iter().map(|&v| f64_key(v)).collect()),
@@ -190,6 +211,7 @@ pub fn encode(r: &Raster, params: &GridParams) -> Result<(Vec<u8>, f64)> {
                     step: 0.0,
                     offset: 0.0,
                     f32_out,
+                    int_out: None,
                 },
                 codes,
                 0.0,
@@ -205,6 +227,7 @@ fn encode_f64_keys(r: &Raster) -> Result<(Vec<u8>, f64)> {
         step: 0.0,
         offset: 0.0,
         f32_out: false,
+        int_out: None,
     };
     let codes = r.data.iter().map(|&v| f64_key(v)).collect();
     Ok((write_payload(r, dq, codes, 0.0), 0.0))
@@ -325,6 +348,7 @@ pub fn decode(payload: &[u8], header: &Header, mask: Option<&[bool]>) -> Result<
         step,
         offset,
         f32_out: header.sample_type == SampleType::F32,
+        int_out: header.sample_type.is_integer().then_some((header.sample_type, header.mapping)),
     };
     let fill = header.nodata.unwrap_or(f64::NAN);
     let mut codes = vec![0i64; n];
@@ -342,11 +366,20 @@ pub fn decode(payload: &[u8], header: &Header, mask: Option<&[bool]>) -> Result<
             };
             let c = p.wrapping_add(res);
             codes[i] = c;
-            out[i] = dq.value(c).ok_or_else(|| {
+            let v = dq.value(c).ok_or_else(|| {
                 Error::corrupt(format!(
                     "grid section: sample {i} decodes to a non-finite value"
                 ))
             })?;
+            // Bit keys are the samples' values as stored: in an integer file each must be
+            // a value of its type (the encoder keys only such values).
+            if coding != CODING_INT && header.sample_type.is_integer() {
+                header
+                    .sample_type
+                    .check_holds(&format!("sample {i}'s value"), v, header.mapping)
+                    .map_err(|m| Error::corrupt(format!("grid section: {m}")))?;
+            }
+            out[i] = v;
         } else {
             codes[i] = p;
             out[i] = fill;
@@ -390,6 +423,7 @@ mod tests {
             step: 1.0,
             offset: 0.0,
             f32_out: false,
+            int_out: None,
         };
         for kind in [ENTROPY_DEFLATE, ENTROPY_RANGE] {
             let payload = write_payload_as(&r, dq, codes.clone(), 0.0, Some(kind));

@@ -116,7 +116,7 @@ mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(24))]
+        #![proptest_config(crate::testutil::proptest_config(24))]
 
         /// Any size, bound, sample type and nodata pattern: the decoded raster meets the
         /// bound the encoder reports, and the reported error is the measured one.
@@ -415,7 +415,7 @@ mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(200))]
+        #![proptest_config(crate::testutil::proptest_config(200))]
         #[test]
         fn garbage_never_panics(
             bytes in prop::collection::vec(any::<u8>(), 0..200),

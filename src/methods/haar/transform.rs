@@ -270,7 +270,7 @@ mod tests {
     use crate::testutil::Rng;
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(64))]
+        #![proptest_config(crate::testutil::proptest_config(64))]
         #[test]
         fn lifting_round_trip_is_exact(
             w in 1usize..40,

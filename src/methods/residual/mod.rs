@@ -157,7 +157,15 @@ pub(crate) fn encode(
                 hi: setup.hi,
                 bin: setup.bin,
             };
-            let (payload, rec) = code(&p, pred, &setup, &exceptions_bytes(r, &setup.exceptions))?;
+            let (payload, rec) = match code(&p, pred, &setup, &exceptions_bytes(r, &setup.exceptions)) {
+                Ok(x) => x,
+                // The weighted predictor cannot code every plane: its mean prediction must
+                // stay within ±2^45 eighths of a step (`weighted::MAX_P`, what keeps its
+                // arithmetic in i64). Interpolation, tried before it, codes any plane, so it
+                // is left out.
+                Err(_) if matches!(pred, Predictor::Weighted) => continue,
+                Err(e) => return Err(e),
+            };
             let mut errs = Errors::default();
             let mut next_exc = setup.exceptions.iter().peekable();
             for (i, &k) in rec.iter().enumerate() {
@@ -312,8 +320,14 @@ fn setup(r: &Raster, e: f64, margin: bool, effort: u8) -> Result<Option<Setup>> 
             }
         }
     }
+    // Sub-lattice units multiply the indices by d: on a lattice already near ±2^38 steps
+    // they would leave the range a section may hold, so it is coded on its own steps.
+    if lo.abs().max(hi.abs()) > MAX_UNITS / d {
+        d = 1;
+    }
     let bin = 2.0 * (d as f64 * eu).floor() + 1.0;
-    let bin = bin.min(MAX_UNITS as f64) as i64;
+    // Odd and at most 2^38 (2^38 − 1 is the widest odd bin a decoder takes).
+    let bin = bin.min((MAX_UNITS - 1) as f64) as i64;
     let (lo, hi) = (lo * d, hi * d);
     if lo < -MAX_UNITS || hi > MAX_UNITS {
         return Ok(None);
@@ -822,4 +836,178 @@ pub(crate) fn describe(payload: &[u8]) -> Result<(&'static str, u32, f64, u64, f
         Predictor::Fast(c) => ("fast interpolation", c.levels),
     };
     Ok((name, levels, h.domain.unit(), h.bin, h.bound))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testutil::Rng;
+
+    /// The widest lattice a section may hold: every value and reconstruction in ±2^38.
+    const M: i64 = MAX_UNITS;
+
+    fn header(w: usize, h: usize) -> Header {
+        Header {
+            width: w as u32,
+            height: h as u32,
+            sample_type: SampleType::F64,
+            primary: 0,
+            mapping: Default::default(),
+            nodata: None,
+            range: None,
+            georef: None,
+        }
+    }
+
+    /// Planes whose values span the whole range the format allows, in the patterns that
+    /// make predictions, residuals, stencil sums and contexts largest: samples alternating
+    /// between −2^38 and 2^38 (along rows, columns, both), random extremes, uniform noise
+    /// over the range, a ramp, lone spikes.
+    fn extreme_planes(w: usize, h: usize) -> Vec<(&'static str, Vec<i64>)> {
+        let mut rng = Rng(35);
+        let n = w * h;
+        let pm = |b: bool| if b { M } else { -M };
+        let mut out: Vec<(&'static str, Vec<i64>)> = vec![
+            ("alternating", (0..n).map(|i| pm(i % 2 == 0)).collect()),
+            ("checkerboard", (0..n).map(|i| pm((i % w + i / w) % 2 == 0)).collect()),
+            ("rows", (0..n).map(|i| pm((i / w) % 2 == 0)).collect()),
+            ("ramp", (0..n).map(|i| -M + (2 * M / (n as i64 - 1).max(1)) * i as i64).collect()),
+            ("spikes", (0..n).map(|i| if i % 7 == 3 { M } else { -M }).collect()),
+        ];
+        let ext = [-M, M, 0, M / 3, -M / 3, M - 1, -M + 1];
+        out.push(("extremes", (0..n).map(|_| ext[rng.below(ext.len() as u64) as usize]).collect()));
+        out.push(("noise", (0..n).map(|_| rng.below(2 * M as u64 + 1) as i64 - M).collect()));
+        out
+    }
+
+    /// Every coding the encoder may choose: efforts 9 and 1's lists, at bin width `bin`.
+    fn every_coding(w: usize, h: usize, bin: i64) -> Vec<Predictor> {
+        let levels = levels_for(w, h);
+        let cfg = interp::Config {
+            levels,
+            ls_levels: LS_LEVELS.min(levels),
+            tighten: false,
+        };
+        let mut v = codings(cfg, bin, 9);
+        v.extend(codings(cfg, bin, 1));
+        v
+    }
+
+    /// Every coding codes and decodes planes spanning ±2^38 with bins of 1, 3, 1001 and the
+    /// widest, with and without skipped samples: within half a bin of the source (exact at
+    /// bin 1), the decoder's values the encoder's reconstruction. Under overflow checks
+    /// (the ci profile) this is the proof that no product, sum or shift leaves i64; only the
+    /// weighted predictor may decline a plane (its mean leaving ±2^45 eighths).
+    #[test]
+    fn planes_spanning_the_whole_lattice_range_round_trip_in_every_coding() {
+        let (w, h) = (37, 29);
+        let mut declined = 0;
+        let mut coded = 0;
+        for (name, values) in extreme_planes(w, h) {
+            for holes in [false, true] {
+                let kinds: Vec<u8> =
+                    (0..w * h).map(|i| if holes && i % 11 == 5 { SKIPPED } else { CODED }).collect();
+                let mask: Option<Vec<bool>> = holes.then(|| kinds.iter().map(|&k| k == CODED).collect());
+                for bin in [1, 3, 1001, MAX_UNITS - 1] {
+                    let setup = Setup {
+                        domain: Domain { mul: 1.0, div: 1.0, offset: 0.0 },
+                        values: values.clone(),
+                        lo: -M,
+                        hi: M,
+                        bin,
+                        exceptions: Vec::new(),
+                    };
+                    let p = Plane {
+                        width: w,
+                        height: h,
+                        kinds: &kinds,
+                        values: &values,
+                        lo: -M,
+                        hi: M,
+                        bin,
+                    };
+                    for pred in every_coding(w, h, bin) {
+                        let what = format!("{name}, holes {holes}, bin {bin}, {pred:?}");
+                        let (payload, rec) = match code(&p, pred, &setup, &[]) {
+                            Ok(x) => x,
+                            Err(e) => {
+                                assert!(matches!(pred, Predictor::Weighted), "{what}: {e}");
+                                declined += 1;
+                                continue;
+                            }
+                        };
+                        coded += 1;
+                        let back = decode(&payload, &header(w, h), mask.as_deref(), None, Window::full(w, h), 0)
+                            .unwrap_or_else(|e| panic!("{what}: {e}"));
+                        for i in 0..w * h {
+                            if kinds[i] == CODED {
+                                assert!((rec[i] - values[i]).abs() <= bin / 2, "{what}: sample {i}");
+                                assert_eq!(back[i], rec[i] as f64, "{what}: sample {i}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(coded > 10 * declined, "{coded} coded, {declined} declined");
+    }
+
+    /// Hostile sections on the widest lattice: each coding's section of an extreme plane
+    /// with its stencil weights set to ±2^15 and bits of its body flipped decodes to an
+    /// error or to samples, never a panic (an overflow under the ci profile's checks).
+    #[test]
+    fn hostile_sections_on_the_widest_lattice_never_panic() {
+        let (w, h) = (37, 29);
+        let kinds = vec![CODED; w * h];
+        let mut rng = Rng(7);
+        for (_, values) in extreme_planes(w, h) {
+            for bin in [1, MAX_UNITS - 1] {
+                let setup = Setup {
+                    domain: Domain { mul: 1.0, div: 1.0, offset: 0.0 },
+                    values: values.clone(),
+                    lo: -M,
+                    hi: M,
+                    bin,
+                    exceptions: Vec::new(),
+                };
+                let p = Plane {
+                    width: w,
+                    height: h,
+                    kinds: &kinds,
+                    values: &values,
+                    lo: -M,
+                    hi: M,
+                    bin,
+                };
+                for pred in every_coding(w, h, bin) {
+                    let Ok((payload, _)) = code(&p, pred, &setup, &[]) else { continue };
+                    let sets = payload[3] as usize;
+                    let nf = match pred {
+                        Predictor::Weighted => weighted::NF,
+                        Predictor::Interp(_) => interp::NF,
+                        Predictor::Fast(_) => fast::NW,
+                    };
+                    let wend = FIXED_LEN + 2 * nf * sets;
+                    for trial in 0..24 {
+                        let mut bad = payload.clone();
+                        for k in (FIXED_LEN..wend).step_by(2) {
+                            let v: i16 = match trial % 3 {
+                                0 => i16::MAX,
+                                1 => i16::MIN,
+                                _ => if rng.below(2) == 0 { i16::MAX } else { i16::MIN },
+                            };
+                            bad[k..k + 2].copy_from_slice(&v.to_le_bytes());
+                        }
+                        if trial >= 3 && bad.len() > wend {
+                            for _ in 0..1 + trial % 4 {
+                                let k = wend + rng.below((bad.len() - wend) as u64) as usize;
+                                bad[k] ^= 1 << rng.below(8);
+                            }
+                        }
+                        let _ = decode(&bad, &header(w, h), None, None, Window::full(w, h), 0);
+                    }
+                }
+            }
+        }
+    }
 }

@@ -6,12 +6,21 @@
 use super::coder::{BinCoder, Ctx, act_class, round_div};
 use super::ls::{self, Normal};
 use super::plane::{Plane, SKIPPED, State, quarter_bins};
-use crate::error::Result;
+use crate::error::{Error, Result};
 
 /// Causal neighbours of the least-squares correction.
 pub const NF: usize = 14;
 /// Least-squares classes (activity classes, halved).
 pub const CLASSES: usize = 8;
+
+/// Largest |P| (the weighted mean, in eighths of a lattice step) a stream may reach. With
+/// reconstructions within ±2^38 (`lattice::MAX_UNITS`) every intermediate of the predictor
+/// and of its least-squares correction then fits i64: true errors ≤ 2^45 + 2^41, each
+/// sub-prediction ≤ 2^50, each sub-predictor error ≤ 2^47, Σ f_k·w_k ≤ 14 · 2^42.1 · 2^15 <
+/// 2^61 (spec/FORMAT.md, "Predictor 1"). The weights follow the errors, so P stays near the
+/// data; a stream whose P leaves the range is corrupt, and an encoder whose plane would
+/// take it there codes it with interpolation instead.
+pub const MAX_P: u64 = 1 << 45;
 
 const MAXW: [u64; 4] = [13, 12, 12, 12];
 const P1C: i64 = 16;
@@ -98,9 +107,9 @@ impl Wp {
         }
     }
 
-    /// The prediction in units (internally 3 more bits).
+    /// The prediction in units (internally 3 more bits); `None` when P leaves ±[`MAX_P`].
     #[inline]
-    fn predict(&mut self, x: usize, y: usize, nb: &Nb) -> i64 {
+    fn predict(&mut self, x: usize, y: usize, nb: &Nb) -> Option<i64> {
         let (cur, prev) = self.rows(y);
         let pos_n = prev + x;
         let pos_ne = if x + 1 < self.w { pos_n + 1 } else { pos_n };
@@ -132,14 +141,18 @@ impl Wp {
         for (p, wt) in self.pred.iter().zip(wts) {
             sum += *p as i128 * wt as i128;
         }
-        let mut p = ((sum * div_lookup(ws - 1) as i128) >> 24) as i64;
+        let p = (sum * div_lookup(ws - 1) as i128) >> 24;
+        if p.unsigned_abs() > MAX_P as u128 {
+            return None;
+        }
+        let mut p = p as i64;
         if ((te_n ^ te_w) | (te_n ^ te_nw)) <= 0 {
             let hi = w.max(ne).max(n);
             let lo = w.min(ne).min(n);
             p = p.clamp(lo, hi);
         }
         self.avg = p;
-        (p + 3) >> 3
+        Some((p + 3) >> 3)
     }
 
     #[inline]
@@ -195,7 +208,11 @@ pub fn fit(p: &Plane) -> Vec<[i16; NF]> {
         for x in 0..w {
             let i = y * w + x;
             let nb = neighbours(&rec, w, x, y, mid);
-            let base = wp.predict(x, y, &nb);
+            let Some(base) = wp.predict(x, y, &nb) else {
+                // The source takes the predictor out of its range: `run` fails too (or
+                // soon after), and the encoder keeps another coding.
+                return vec![[0; NF]; CLASSES];
+            };
             let act = activity(&nb, &err, w, x, i);
             let cls = class(act, p.bin);
             let pred = base.clamp(p.lo, p.hi);
@@ -242,7 +259,9 @@ pub fn run<C: BinCoder>(p: &Plane, weights: &[[i16; NF]], coder: &mut C) -> Resu
         for x in 0..w {
             let i = y * w + x;
             let nb = neighbours(&st.rec, w, x, y, mid);
-            let base = wp.predict(x, y, &nb);
+            let base = wp.predict(x, y, &nb).ok_or_else(|| {
+                Error::corrupt("residual section: the weighted prediction leaves ±2^45 eighths")
+            })?;
             let act = activity(&nb, &st.res, w, x, i);
             let mut pred = base;
             if let (Some(f), Some(cf)) = (features(&st.rec, w, x, y, base), weights.get(class(act, bin))) {

@@ -61,15 +61,19 @@ pub(super) fn fit(p: &Plane, pass: Pass) -> Option<[i16; NW]> {
     if wt == [0; NW] {
         return None;
     }
+    // Squared errors in f64: lattice values reach ±2^38 (`lattice::MAX_UNITS`), so a
+    // residual t reaches ~2^39 and t² leaves i64. The correction itself is the decoder's
+    // integer arithmetic (|f·w| ≤ 2^39.4 · 2^15, ten of them: < 2^58).
     let (mut e0, mut e1, mut m) = (0f64, 0f64, 0f64);
     each(&mut |fs, t| {
         let acc: i64 = fs.iter().zip(&wt).map(|(f, w)| f * *w as i64).sum();
         let c = (acc + 512) >> 10;
-        e0 += (t * t) as f64;
-        e1 += ((t - c) * (t - c)) as f64;
+        e0 += (t as f64).powi(2);
+        e1 += ((t - c) as f64).powi(2);
         m += 1.0;
     });
-    let q = (pass.bin * pass.bin) as f64 / 4.0;
+    // W ≤ 2^38: W² in f64 too.
+    let q = (pass.bin as f64).powi(2) / 4.0;
     let per = 0.5 * ((e0 / m + q) / (e1 / m + q)).log2();
     let samples = (pass.rows(h) * pass.cols(w)) as f64;
     (per * samples > 2.0 * 8.0 * 2.0 * NW as f64).then_some(wt)
