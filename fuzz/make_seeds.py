@@ -2,7 +2,7 @@
 """Seed corpora for the fuzz targets, from the golden files (tests/golden) and small
 crops of corpus rasters written by the vtz CLI in every format it reads.
 
-    python3 fuzz/make_seeds.py [path/to/vtz]     # writes fuzz/corpus/<target>/
+    python3 fuzz/make_seeds.py [path/to/vtz] [OUT]     # writes OUT/<target>/ (default fuzz/corpus)
 """
 import os, random, struct, subprocess, sys, tempfile, glob
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -10,7 +10,7 @@ import hostile  # noqa: E402  (fuzz/hostile.py: header-edited golden files)
 
 root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 vtz = sys.argv[1] if len(sys.argv) > 1 else os.path.join(root, "target/release/vtz")
-out = os.path.join(root, "fuzz/corpus")
+out = sys.argv[2] if len(sys.argv) > 2 else os.path.join(root, "fuzz/corpus")
 for t in ("container", "sections", "readers", "roundtrip", "points"):
     os.makedirs(os.path.join(out, t), exist_ok=True)
 

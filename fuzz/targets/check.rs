@@ -1,4 +1,4 @@
-//! What the fuzz targets check alike (included by each with `#[path]`).
+//! What the fuzz targets check alike.
 
 use vtz::{Raster, Window};
 
