@@ -648,8 +648,8 @@ mod tests {
             let r = Raster::from_values(w, h, data, None, SampleType::F32).unwrap();
             let (d, got) = stepped(&r, true).unwrap();
             assert_eq!(d.unit(), want, "step {step}");
-            for i in 0..r.len() {
-                assert_eq!(finish(d.raw(got[i]), r.sample_type, r.mapping), r.data[i]);
+            for (&g, &v) in got.iter().zip(&r.data) {
+                assert_eq!(finish(d.raw(g), r.sample_type, r.mapping), v);
             }
         }
     }
