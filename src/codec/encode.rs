@@ -92,15 +92,11 @@ pub(crate) fn encode_parts(
     let mut header = Header::of(raster)?;
     let e = opts.max_error.map(|b| b.absolute(header.range));
     // Flat regions decode exactly whatever the method: they get a section of their own,
-    // and the methods see them as samples they need not represent.
-    // A lossless encode keeps them exact anyway, and so does a bound below half the data's
-    // own step (only exact values meet it), so they get no section then.
-    let flat = match e {
-        Some(b) if b > 0.0 && raster.value_step().is_none_or(|q| b >= q / 2.0) => {
-            crate::model::flat::find(raster)
-        }
-        _ => None,
-    };
+    // and the methods see them as samples they need not represent. At every bound,
+    // lossless included: a method would code each of their samples (a constant 3601²
+    // tile: 2 980 bytes of the residual layer's zero bins losslessly, against a flat
+    // section of a few dozen bytes).
+    let flat = crate::model::flat::find(raster);
     // A flat region's value is stored as every one of its samples' value, and a decoder
     // rejects one that is not a value of the sample type (spec/FORMAT.md). The samples of
     // a raster read from a file are; a region of other values (a raster built with them)

@@ -153,8 +153,10 @@ pub(crate) fn label_runs(flat: &[bool], w: usize) -> (Vec<(u64, u32, u32)>, u32)
 /// samples as a fill sample by sample, in far fewer steps over a sea); returns its size.
 fn fill_span(r: &Raster, comp: &mut [u32], stack: &mut Vec<usize>, s: usize, id: u32) -> usize {
     let (w, n) = (r.width, r.len());
-    let v = r.data[s];
-    let open = |comp: &[u32], j: usize| comp[j] == u32::MAX && r.is_valid(j) && r.data[j] == v;
+    // The same bits (0 and −0 are different values to a lossless encode).
+    let v = r.data[s].to_bits();
+    let open =
+        |comp: &[u32], j: usize| comp[j] == u32::MAX && r.is_valid(j) && r.data[j].to_bits() == v;
     let mut size = 0;
     stack.push(s);
     while let Some(i) = stack.pop() {
@@ -193,7 +195,7 @@ fn fill_span(r: &Raster, comp: &mut [u32], stack: &mut Vec<usize>, s: usize, id:
 /// The flat regions of `r`: per sample its region's value, NaN outside every region; `None`
 /// when there is none. A region is the union of the aligned [`BLOCK`]² blocks (clipped at
 /// the raster's edges) whose samples are all valid and lie in one 4-connected component of
-/// one exact value of at least [`MIN_REGION`] samples; a block touching a kept block of
+/// one exact value (the same bits: 0 and −0 differ) of at least [`MIN_REGION`] samples; a block touching a kept block of
 /// another component is left out (so that [`label_runs`] of the result gives regions of one
 /// value each to a decoder that sees only the blocks), and so is a region of fewer than
 /// [`MIN_PIECE`] samples.
@@ -212,8 +214,9 @@ pub(crate) fn find(r: &Raster) -> Option<Vec<f64>> {
     let uniform = |bx: usize, by: usize| {
         let (x0, y0) = (bx * BLOCK, by * BLOCK);
         let (x1, y1) = ((x0 + BLOCK).min(w), (y0 + BLOCK).min(h));
-        let v = r.data[y0 * w + x0];
-        (y0..y1).all(|y| (y * w + x0..y * w + x1).all(|i| r.is_valid(i) && r.data[i] == v))
+        let v = r.data[y0 * w + x0].to_bits();
+        (y0..y1)
+            .all(|y| (y * w + x0..y * w + x1).all(|i| r.is_valid(i) && r.data[i].to_bits() == v))
     };
     let cand: Vec<usize> = (0..bw * bh).filter(|&b| uniform(b % bw, b / bw)).collect();
     if cand.is_empty() {

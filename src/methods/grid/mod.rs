@@ -86,8 +86,10 @@ impl Dequant {
 }
 
 /// Try integer coding with `step`/`offset`: codes chosen so that every valid sample's
-/// reconstruction is within `tol` of it (exact when `tol` is 0). `None` when impossible.
+/// reconstruction is within `tol` of it (exact when `tol` is 0: for float samples the same
+/// bits, so a −0 sample rules integer codes out). `None` when impossible.
 fn int_codes(r: &Raster, dq: Dequant, tol: f64) -> Option<Vec<i64>> {
+    let bits = tol == 0.0 && !r.sample_type.is_integer();
     // The physical values an integer source type can hold.
     let range = r.sample_type.int_range().map(|(a, b)| {
         let (x, y) = (r.mapping.to_value(a), r.mapping.to_value(b));
@@ -106,8 +108,10 @@ fn int_codes(r: &Raster, dq: Dequant, tol: f64) -> Option<Vec<i64>> {
         // Closed loop: take the first candidate whose reconstruction meets the bound and
         // that the source's type can hold (255 with a step of 13 must not decode as 260).
         let ok = [q, q - 1, q + 1].into_iter().find(|&c| {
-            dq.value(c)
-                .is_some_and(|rv| (rv - v).abs() <= tol && range.is_none_or(|(lo, hi)| rv >= lo && rv <= hi))
+            dq.value(c).is_some_and(|rv| {
+                (if bits { rv.to_bits() == v.to_bits() } else { (rv - v).abs() <= tol })
+                    && range.is_none_or(|(lo, hi)| rv >= lo && rv <= hi)
+            })
         })?;
         codes[i] = ok;
     }
@@ -171,6 +175,13 @@ pub fn encode(r: &Raster, params: &GridParams) -> Result<(Vec<u8>, f64)> {
         // Float data that holds integers (many DEMs do) codes losslessly as integers.
         if chosen.is_none() {
             chosen = try_int(1.0, 0.0, 0.0);
+        }
+        // Or integers from the smallest value (a constant raster: every code 0, where bit
+        // keys would spend a first residual of ~30 bits).
+        if chosen.is_none() && e == 0.0 {
+            if let Some((lo, _)) = r.valid_range() {
+                chosen = try_int(1.0, lo, 0.0);
+            }
         }
     }
     let (dq, codes, bound) = match chosen {

@@ -255,7 +255,9 @@ fn setup(r: &Raster, e: f64, margin: bool, effort: u8) -> Result<Option<Setup>> 
     let mut exceptions = Vec::new();
     // Only for a lossless request: below half a step a lossy code on a finer step can be
     // smaller (measured: Vinschgau at 0.01 % of its range, 48 795 against 50 527 bytes).
-    let stepped = lattice::stepped(r);
+    // Lossless means the same bits (a −0 sample is no sample of a lattice decoding +0).
+    let bits = e == 0.0;
+    let stepped = lattice::stepped(r, bits);
     // A coarser step with exceptions beats a finer exact one (or a power of two) when the
     // exceptions (~48 bits each) cost less than the finer step's extra bits per sample.
     // (Not looked for at all when lossy: that saves its passes over the data.)
@@ -275,7 +277,7 @@ fn setup(r: &Raster, e: f64, margin: bool, effort: u8) -> Result<Option<Setup>> 
             Some((d, k))
         }
         (Some(x), None) => Some(x),
-        (None, None) => lattice::pow2(r),
+        (None, None) => lattice::pow2(r, bits),
     };
     let (domain, values, exact) = match found {
         Some((d, k)) => (d, k, true),
