@@ -107,6 +107,7 @@ pub mod internals {
         pub use crate::formats::exr::read as exr;
         pub use crate::formats::geotiff::read as geotiff;
         pub use crate::formats::hgt::read as hgt;
+        pub use crate::formats::png::RgbHeights;
         pub use crate::formats::png::read as png;
         pub use crate::formats::raw::read as raw;
     }

@@ -1,5 +1,5 @@
-//! Every raster reader on any bytes: the first byte picks GeoTIFF, PNG (grey mapping or
-//! Terrain-RGB), OpenEXR, SRTM hgt, ESRI ASCII grid or raw f32 + JSON sidecar; the rest is
+//! Every raster reader on any bytes: the first byte picks GeoTIFF, PNG (grey mapping,
+//! Terrain-RGB or Terrarium), OpenEXR, SRTM hgt, ESRI ASCII grid or raw f32 + JSON sidecar; the rest is
 //! the file. Errors are fine; panics and allocations beyond the sample limit are not. A
 //! raster that reads must keep the model's invariants.
 use vtz::formats::ReadOptions;
@@ -14,10 +14,11 @@ pub fn run(data: &[u8]) {
         max_samples: Some(1 << 16),
         ..Default::default()
     };
-    let r = match pick % 7 {
+    let r = match pick % 8 {
         0 => formats::geotiff(file, &opts),
-        1 => formats::png(file, None, false, &opts),
-        2 => formats::png(file, None, true, &opts),
+        1 => formats::png(file, None, None, &opts),
+        2 => formats::png(file, None, Some(formats::RgbHeights::TerrainRgb), &opts),
+        7 => formats::png(file, None, Some(formats::RgbHeights::Terrarium), &opts),
         3 => formats::exr(file, &opts),
         4 => formats::hgt(file, "N22W160.hgt", &opts),
         5 => formats::asc(file, &opts),

@@ -191,19 +191,25 @@ impl Prepared<'_> {
                 )));
             };
             // Start from the exact-arithmetic ends and step to the true ones (a step or two).
+            // Both ends stay within ±MAX_CODE, where the estimates are clamped: a bound far
+            // above the data's range (1e30 on values of ±2^38) would otherwise walk from the
+            // clamped estimate towards k ± reach one code at a time (2^38 steps). A
+            // narrower interval only constrains the encoder more; the bound still holds.
             let est = |x: f64| ((x - lat.offset) / lat.step).clamp(-MAX_CODE, MAX_CODE);
-            let mut lo = (est(v - e).ceil() as i64).clamp(k - reach, k);
-            let mut hi = (est(v + e).floor() as i64).clamp(k, k + reach);
+            let min_k = (k - reach).max(-MAX_CODE as i64).min(k);
+            let max_k = (k + reach).min(MAX_CODE as i64).max(k);
+            let mut lo = (est(v - e).ceil() as i64).clamp(min_k, k);
+            let mut hi = (est(v + e).floor() as i64).clamp(k, max_k);
             while lo < k && !ok(lo) {
                 lo += 1;
             }
-            while lo > k - reach && ok(lo - 1) {
+            while lo > min_k && ok(lo - 1) {
                 lo -= 1;
             }
             while hi > k && !ok(hi) {
                 hi -= 1;
             }
-            while hi < k + reach && ok(hi + 1) {
+            while hi < max_k && ok(hi + 1) {
                 hi += 1;
             }
             *slot = (lo, hi);
