@@ -555,7 +555,7 @@ fn a_header_range_off_the_sample_types_lattice_is_corrupt() {
     let grid = vtz::encode(&r, &encode_opts(&[Method::GRID], None)).unwrap_err();
     assert!(
         grid.to_string()
-            .contains("sample 17's value 2.5 is not a value of i16"),
+            .contains("sample 17 (row 1, column 7): the value 2.5 is not a value of i16"),
         "{grid}"
     );
     let bytes = vtz::encode(&r, &encode_opts(&[], Some(ErrorBound::Abs(1.0)))).unwrap();

@@ -11,6 +11,9 @@ mod targets;
 use std::path::Path;
 use std::process::Command;
 
+/// A fuzz target's body: one input.
+type Target = fn(&[u8]);
+
 #[test]
 fn every_fuzz_seed_replays_through_its_target() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -26,7 +29,7 @@ fn every_fuzz_seed_replays_through_its_target() {
         "make_seeds.py failed: {}",
         String::from_utf8_lossy(&made.stderr)
     );
-    let targets: [(&str, fn(&[u8])); 5] = [
+    let targets: [(&str, Target); 5] = [
         ("container", targets::container::run),
         ("sections", targets::sections::run),
         ("readers", targets::readers::run),

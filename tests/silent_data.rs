@@ -4,7 +4,7 @@
 mod common;
 use common::*;
 use std::path::Path;
-use vtz::{ErrorBound, Method, SampleType, ValueMapping};
+use vtz::{ErrorBound, Method, Raster, SampleType, ValueMapping};
 
 fn code(o: &std::process::Output) -> i32 {
     o.status.code().expect("exit code")
@@ -66,8 +66,38 @@ fn item7_best_says_why_a_lossy_request_got_a_lossless_file() {
         scale: 1.0,
         offset: -32768.0,
     };
-    let (_, rep) =
-        vtz::encode_report(&r, &encode_opts(&[], Some(ErrorBound::PercentOfRange(1.0)))).unwrap();
+    // (Issue 35, item 15: such values are not values of the raster's type, and the grid
+    // stored them as f64 bit keys, which a decoder of an integer file now rejects: the
+    // encoder refuses the raster up front, naming the sample and the type.)
+    let e = vtz::encode_report(&r, &encode_opts(&[], Some(ErrorBound::PercentOfRange(1.0))))
+        .expect_err("values beyond the codes' range");
+    let msg = e.to_string();
+    assert!(
+        matches!(e, vtz::Error::InvalidArgument { .. })
+            && msg.contains("sample 0 (row 0, column 0)")
+            && msg.contains("is not a value of i16 codes mapped by")
+            && !msg.contains('\n'),
+        "{msg}"
+    );
+    // f32 values spread over ten decades with a max error of 1e-30: no lossy method reaches
+    // it (the residual layer finds no lattice, Haar's and the sites' steps cannot be that
+    // fine), so the grid stores the values exactly, and the report says why.
+    let mut x = 7u64;
+    let values: Vec<f64> = (0..40 * 30)
+        .map(|_| {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let (a, b) = (
+                (x >> 11) as f64 / (1u64 << 53) as f64,
+                (x >> 40) as f64 / (1u64 << 24) as f64,
+            );
+            ((a * 2.0 - 1.0) * 10f64.powf(b * 10.0 - 5.0)) as f32 as f64
+        })
+        .collect();
+    let r = Raster::from_values(40, 30, values, None, SampleType::F32).unwrap();
+    let (bytes, rep) =
+        vtz::encode_report(&r, &encode_opts(&[], Some(ErrorBound::Abs(1e-30)))).unwrap();
     assert_eq!(rep.max_error, 0.0);
     assert_eq!(rep.notes.len(), 1, "{:?}", rep.notes);
     assert!(
@@ -75,6 +105,7 @@ fn item7_best_says_why_a_lossy_request_got_a_lossless_file() {
         "{}",
         rep.notes[0]
     );
+    assert_same(&r, &vtz::decode(&bytes).unwrap(), "stored losslessly");
     // A lossy answer, or a lossless request, has nothing to say.
     let r = terrain(Kind::Fbm, 100, 80, 7, false, SampleType::I16);
     let (_, rep) =

@@ -91,6 +91,34 @@ pub(crate) fn encode_parts(
     }
     let mut header = Header::of(raster)?;
     let e = opts.max_error.map(|b| b.absolute(header.range));
+    // An integer raster's values are its codes' values (value = offset + scale · code, the
+    // code in the type's range). A value farther from its nearest one than the bound allows
+    // (any off the lattice when lossless; one beyond the codes' range by more than the
+    // bound) cannot be stored as its type within the request: it is refused here, naming
+    // the sample, instead of a method's vaguer "cannot meet" (or, before, f64 bit keys a
+    // decoder of an integer file rejects: spec/FORMAT.md, "a value of the sample type").
+    if raster.sample_type.is_integer() {
+        let (st, m, tol) = (raster.sample_type, raster.mapping, e.unwrap_or(0.0));
+        let off = |i: usize| {
+            let v = raster.data[i];
+            raster.is_valid(i) && !st.holds(v, m) && (st.nearest_value(v, m) - v).abs() > tol
+        };
+        if let Some(i) = (0..raster.len()).find(|&i| off(i)) {
+            let why = st
+                .check_holds("the value", raster.data[i], m)
+                .expect_err("not a value of the type");
+            let beyond = if tol > 0.0 {
+                format!(", and its nearest one is farther than the max error {tol}")
+            } else {
+                String::new()
+            };
+            return Err(Error::invalid(format!(
+                "sample {i} (row {}, column {}): {why}{beyond}",
+                i / raster.width,
+                i % raster.width
+            )));
+        }
+    }
     // Flat regions decode exactly whatever the method: they get a section of their own,
     // and the methods see them as samples they need not represent. At every bound,
     // lossless included: a method would code each of their samples (a constant 3601²
