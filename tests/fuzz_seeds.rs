@@ -2,7 +2,8 @@
 //! order on every run: `fuzz/make_seeds.py` writes the seeds (golden files, hostile header
 //! edits, corpus crops in every format and method, wide lattices, point sets) with this
 //! build's `vtz`, and each is handed to `fuzz/targets/<target>.rs`, the code libFuzzer runs.
-//! A seed that panics there is a regression. The coverage-guided search itself (random,
+//! So is every input under `fuzz/regressions/<target>/` (what a fuzzer once crashed on, kept
+//! once fixed). A seed that panics there is a regression. The coverage-guided search itself (random,
 //! nightly) is `fuzz/smoke.sh` and the long runs of fuzz/README.md, run before a stop.
 
 #[path = "../fuzz/targets/mod.rs"]
@@ -41,6 +42,10 @@ fn every_fuzz_seed_replays_through_its_target() {
             .unwrap_or_else(|e| panic!("no seeds for {name}: {e}"))
             .map(|e| e.unwrap().path())
             .collect();
+        // The inputs the fuzzers found a crash with, committed once fixed.
+        if let Ok(found) = std::fs::read_dir(root.join("fuzz/regressions").join(name)) {
+            seeds.extend(found.map(|e| e.unwrap().path()));
+        }
         seeds.sort();
         // Every target has seeds of its own (a seed generator that silently wrote none
         // would make this test pass on nothing).

@@ -184,7 +184,13 @@ fn write_levels(
             let mid = enc.len_estimate();
             let p = [(idx as usize % width) as i64, (idx as usize / width) as i64];
             let pred = st.predict(p);
-            st.height.encode(&mut enc, code - pred);
+            // Codes of a lattice as wide as the data allows (f64 heights over ±1e300) can be
+            // farther apart than an i64 holds: the method cannot code them (the decoder's
+            // checked addition would reject the stream anyway).
+            let diff = code.checked_sub(pred).ok_or_else(|| {
+                Error::unmet("the sites method cannot code heights this far apart on its height lattice")
+            })?;
+            st.height.encode(&mut enc, diff);
             let after = enc.len_estimate();
             stats.position_bits += 8.0 * (mid - before) as f64;
             stats.height_bits += 8.0 * (after - mid) as f64;
