@@ -94,7 +94,8 @@ pub fn run(data: &[u8]) {
         "reported {} over {requested}",
         report.max_error
     );
-    let dec = vtz::decode(&bytes).expect("an encoded file decodes");
+    let dec = vtz::decode(&bytes)
+        .unwrap_or_else(|e| panic!("an encoded file decodes: {e} (methods {:?})", opts.methods));
     assert_eq!(
         (dec.width, dec.height, dec.sample_type),
         (width, height, st)

@@ -86,9 +86,15 @@ pub(crate) fn finish(v: f64, st: SampleType, m: ValueMapping) -> f64 {
 pub(crate) struct Errors {
     pub max: f64,
     sum2: f64,
+    /// The sum of squares scaled by 2^-1200 (each error by 2^-600), for errors whose squares
+    /// overflow (f64 data over ±1e154): the rmse is then finite (a stored rmse must be).
+    sum2_scaled: f64,
     sum1: f64,
     pub n: usize,
 }
+
+/// 2^-600: errors up to f64::MAX square to ≤ 2^256 after this scale.
+const RMSE_SCALE: f64 = 2.409919865102884e-181;
 
 impl Errors {
     /// Add one sample's decoded value `decoded` against its source value `source`; returns
@@ -98,6 +104,7 @@ impl Errors {
         let e = (decoded - source).abs();
         self.max = self.max.max(e);
         self.sum2 += e * e;
+        self.sum2_scaled += (e * RMSE_SCALE) * (e * RMSE_SCALE);
         self.sum1 += e;
         self.n += 1;
         e
@@ -105,7 +112,12 @@ impl Errors {
 
     /// The root mean square error (0 over no samples).
     pub fn rmse(&self) -> f64 {
-        (self.sum2 / self.n.max(1) as f64).sqrt()
+        let n = self.n.max(1) as f64;
+        if self.sum2.is_finite() {
+            (self.sum2 / n).sqrt()
+        } else {
+            ((self.sum2_scaled / n).sqrt() / RMSE_SCALE).min(self.max)
+        }
     }
 
     /// The mean absolute error (0 over no samples).
