@@ -84,6 +84,12 @@ with tempfile.TemporaryDirectory() as tmp:
             except subprocess.CalledProcessError:
                 continue
             vtzs.append(p)
+    # GDAL's own files (tests/gdal_written): internal mask bands in strips, LZW tiles, PackBits,
+    # a COG; a south-up GeoTIFF; an ASCII grid with NODATA_value nan.
+    for p in sorted(glob.glob(os.path.join(root, "tests/gdal_written/*.tif"))):
+        put("readers", "gdal_" + os.path.basename(p), bytes([0]) + open(p, "rb").read())
+    for p in sorted(glob.glob(os.path.join(root, "tests/gdal_written/*.asc"))):
+        put("readers", "gdal_" + os.path.basename(p), bytes([5]) + open(p, "rb").read())
     # Lattices as wide as the residual layer takes (whole numbers up to ±2^38, alternating
     # extremes) and wider (f32 noise over ±3e38, mixed signs and magnitudes): every residual
     # coding (efforts 1, 5, 9), lossless and lossy, and `best` (issue 35: overflow).
