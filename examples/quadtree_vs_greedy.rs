@@ -129,7 +129,7 @@ fn run(name: &str, r: &Raster, thresholds: &[f64]) -> vtz::Result<Vec<Row>> {
         let greedy_secs = t1.elapsed().as_secs_f64();
         let back = vtz::decode(&bytes)?;
         let c = vtz::metrics::compare(r, &back)?;
-        let mut gr: Vec<(usize, usize)> = vtz::Decoder::new(std::io::Cursor::new(&bytes))?
+        let mut gr: Vec<(usize, usize)> = vtz::Decoder::new(std::io::Cursor::new(bytes.clone()))?
             .sites()?
             .iter()
             .map(|s| (s.col, s.row))

@@ -40,6 +40,7 @@ pub mod metrics;
 mod model;
 mod predict;
 mod quant;
+pub mod source;
 pub mod viz;
 
 #[cfg(test)]
@@ -73,6 +74,7 @@ pub use model::{
     ValueMapping, Window,
 };
 pub use quant::ErrorBound;
+pub use source::RangeSource;
 
 /// Internals for the crate's own tests, benches and examples (the `internals` feature):
 /// no stability promise.

@@ -72,7 +72,7 @@ fn cells_tile_the_hull_and_count_every_sample() {
                     source,
                     ..Default::default()
                 };
-                let fc = vtz::file_cells(std::io::Cursor::new(&bytes), &req).unwrap();
+                let fc = vtz::file_cells(std::io::Cursor::new(bytes.clone()), &req).unwrap();
                 let polys = fc.polygons();
                 assert_eq!(polys.len(), fc.sites.len());
                 assert!(fc.sites.iter().all(|s| s.level <= fc.level));
@@ -112,7 +112,7 @@ fn a_level_past_the_last_is_refused() {
         level: Some(99),
         ..Default::default()
     };
-    let e = vtz::file_cells(std::io::Cursor::new(&bytes), &req).unwrap_err();
+    let e = vtz::file_cells(std::io::Cursor::new(bytes.clone()), &req).unwrap_err();
     assert!(matches!(e, vtz::Error::InvalidArgument { .. }), "{e}");
 }
 

@@ -374,7 +374,7 @@ fn untiled_decode_progress_moves_to_the_end() {
         for threads in [1, 2] {
             for scale in [None, Some("2"), Some("1/3")] {
                 let seen = Mutex::new(Vec::new());
-                let mut d = vtz::Decoder::new(std::io::Cursor::new(&bytes)).unwrap();
+                let mut d = vtz::Decoder::new(std::io::Cursor::new(bytes.to_vec())).unwrap();
                 let opts = common::decode_opts(|o| {
                     o.threads = threads;
                     o.scale = scale.map(|s| s.parse().unwrap());

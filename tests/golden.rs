@@ -525,7 +525,7 @@ fn the_tiled_golden_file_decodes_to_its_expected_samples() {
         as_f32_bytes(&r) == expected,
         "{name}: decoded samples differ"
     );
-    vtz::Decoder::new(std::io::Cursor::new(&bytes))
+    vtz::Decoder::new(std::io::Cursor::new(bytes.to_vec()))
         .unwrap()
         .verify()
         .unwrap();

@@ -100,7 +100,7 @@ proptest! {
         // given, even values a decoder must reject).
         let file = container::write(&h, &sections);
         let limits = Limits { max_samples: 1 << 22, max_section_bytes: 1 << 24 };
-        let Ok(mut d) = Decoder::with_limits(Cursor::new(&file), limits) else {
+        let Ok(mut d) = Decoder::with_limits(Cursor::new(file.to_vec()), limits) else {
             return Ok(());
         };
         let info = d.info().clone();

@@ -35,11 +35,11 @@ fn limit_message(r: vtz::Result<vtz::Raster>) -> String {
 fn header_size_is_checked_against_the_limits() {
     let bytes = sites_file();
     // 1 200 samples: a limit of 1 199 refuses the file before any sample is decoded.
-    let e = Decoder::with_limits(std::io::Cursor::new(&bytes), limits(1199))
+    let e = Decoder::with_limits(std::io::Cursor::new(bytes.to_vec()), limits(1199))
         .err()
         .expect("refused");
     assert!(matches!(e, Error::LimitExceeded { .. }), "{e}");
-    assert!(Decoder::with_limits(std::io::Cursor::new(&bytes), limits(1200)).is_ok());
+    assert!(Decoder::with_limits(std::io::Cursor::new(bytes.to_vec()), limits(1200)).is_ok());
 }
 
 #[test]

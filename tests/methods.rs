@@ -279,7 +279,7 @@ fn decoder_reports_the_stored_bound() {
             Some(ErrorBound::Abs(e))
         };
         let (bytes, rep) = vtz::encode_report(&r, &encode_opts(&[m], b)).unwrap();
-        let mut dec = vtz::Decoder::new(std::io::Cursor::new(&bytes)).unwrap();
+        let mut dec = vtz::Decoder::new(std::io::Cursor::new(bytes.to_vec())).unwrap();
         let stored = dec.max_error().unwrap();
         assert_eq!(stored, rep.max_error, "{}", m.name());
         assert!(stored <= e, "{}: {stored} > {e}", m.name());

@@ -105,7 +105,7 @@ fn item4_progress_is_monotonic_from_the_start_for_encode_and_decode() {
     assert!(seen.windows(2).all(|w| w[0] <= w[1]), "{seen:?}");
     assert!(seen.len() > 3);
     let seen = std::sync::Mutex::new(Vec::new());
-    let mut d = vtz::Decoder::new(std::io::Cursor::new(&bytes)).unwrap();
+    let mut d = vtz::Decoder::new(std::io::Cursor::new(bytes.to_vec())).unwrap();
     d.section(vtz::SectionChoice::Method(Method::SIBSON));
     let out = d
         .decode_progress(&|f| seen.lock().unwrap().push(f))

@@ -625,7 +625,7 @@ fn fast_coded_windows_are_the_crop_of_the_full_decode() {
         check(&r, &full, 1.0, "kauai at 1 m");
         let n = if tile == Some(0) { windows.len() } else { 10 };
         for threads in [1, 2] {
-            let mut d = vtz::Decoder::new(std::io::Cursor::new(&bytes)).unwrap();
+            let mut d = vtz::Decoder::new(std::io::Cursor::new(bytes.to_vec())).unwrap();
             d.options(decode_opts(|o| o.threads = threads));
             for &wn in &windows[..n] {
                 let part = d.window(wn).decode().unwrap();

@@ -470,7 +470,7 @@ fn a_tiled_overview_takes_each_sample_from_its_tile_within_the_bound() {
         opts.tile = Some(96);
         opts.effort = Some(effort);
         let bytes = vtz::encode(&src, &opts).unwrap();
-        let info = vtz::Decoder::new(std::io::Cursor::new(&bytes))
+        let info = vtz::Decoder::new(std::io::Cursor::new(bytes.to_vec()))
             .unwrap()
             .info()
             .clone();

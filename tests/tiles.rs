@@ -49,7 +49,7 @@ fn every_method_round_trips_within_the_bound_over_tiles() {
         assert_eq!(d.mask, src.mask, "{}: nodata kept", m.name());
         let me = max_err(&src, &d);
         assert!(me <= e, "{}: max error {me} over {e}", m.name());
-        let v = Decoder::new(Cursor::new(&bytes)).unwrap().verify().unwrap();
+        let v = Decoder::new(Cursor::new(bytes.to_vec())).unwrap().verify().unwrap();
         // Each tile's coded samples, margins included.
         assert_eq!(v.valid, t.tiles.iter().map(|x| x.valid).sum::<u64>());
         assert!(v.valid > src.valid_count() as u64);
@@ -178,7 +178,7 @@ fn a_window_reads_the_header_the_index_and_only_the_tiles_it_touches() {
         assert_eq!(coded, touched, "{win:?}");
         let read = Arc::new(AtomicU64::new(0));
         let r = Counting {
-            inner: Cursor::new(&bytes),
+            inner: Cursor::new(bytes.clone()),
             read: read.clone(),
         };
         let mut d = Decoder::new(r).unwrap();
@@ -269,7 +269,7 @@ fn tiled_file() -> (Vec<u8>, vtz::TilesInfo) {
 }
 
 fn corrupt_msg(bytes: &[u8]) -> String {
-    match Decoder::new(Cursor::new(bytes)).and_then(|mut d| d.decode()) {
+    match Decoder::new(Cursor::new(bytes.to_vec())).and_then(|mut d| d.decode()) {
         Err(e @ Error::Corrupt { .. }) => e.to_string(),
         Err(e) => panic!("not a corrupt error: {e}"),
         Ok(_) => panic!("decoded a corrupt file"),
@@ -330,7 +330,7 @@ fn corrupt_indexes_are_rejected_naming_the_tile() {
         max_section_bytes: 100,
         ..Default::default()
     };
-    let e = Decoder::with_limits(Cursor::new(&bytes), limits)
+    let e = Decoder::with_limits(Cursor::new(bytes.to_vec()), limits)
         .err()
         .unwrap();
     assert!(matches!(e, Error::LimitExceeded { .. }), "{e}");
@@ -353,7 +353,7 @@ fn every_proper_prefix_of_a_tiled_file_is_rejected() {
     let (bytes, _) = tiled_file();
     for n in 0..bytes.len() {
         assert!(
-            Decoder::new(Cursor::new(&bytes[..n])).is_err(),
+            Decoder::new(Cursor::new(bytes[..n].to_vec())).is_err(),
             "prefix of {n} of {} bytes opened",
             bytes.len()
         );
@@ -381,7 +381,7 @@ fn a_corrupt_tile_fails_naming_it_and_skip_corrupt_writes_nodata_there() {
         height: w.y - t.margin as usize,
     };
     assert!(vtz::decode_with(&b, &decode_opts(|o| o.window = Some(win))).is_ok());
-    let mut d = Decoder::new(Cursor::new(&b)).unwrap();
+    let mut d = Decoder::new(Cursor::new(b.to_vec())).unwrap();
     d.options(decode_opts(|o| o.skip_corrupt = true));
     let r = d.decode().unwrap();
     assert_eq!(d.skipped().len(), 1);
@@ -467,7 +467,7 @@ fn a_global_directory_holds_only_metadata_sections() {
         b[dir + 20..dir + 24].copy_from_slice(&crc.to_le_bytes());
         let m = corrupt_msg(&b);
         assert!(m.contains("only metadata"), "type {kind}: {m}");
-        let e = Decoder::new(Cursor::new(&b))
+        let e = Decoder::new(Cursor::new(b.to_vec()))
             .and_then(|mut d| d.verify())
             .unwrap_err();
         assert!(

@@ -61,7 +61,7 @@ pub const VTZ_F64: i32 = 5;
 /// An open `.vtz` file (opaque). Made by `vtz_open_path` / `vtz_open_memory`, released by
 /// `vtz_close`.
 pub struct VtzFile {
-    dec: Mutex<Decoder<Box<dyn ReadSeek>>>,
+    dec: Mutex<Decoder>,
     info: FileInfo,
     /// The CRS as GDAL's SetFromUserInput takes it (WKT, else `EPSG:n`, else PROJ),
     /// NUL-terminated; empty when none.

@@ -12,7 +12,7 @@ pub fn run(data: &[u8]) {
         max_samples: 1 << 16,
         max_section_bytes: 1 << 20,
     };
-    let Ok(mut d) = Decoder::with_limits(Cursor::new(data), limits) else {
+    let Ok(mut d) = Decoder::with_limits(Cursor::new(data.to_vec()), limits) else {
         return;
     };
     let info = d.info().clone();

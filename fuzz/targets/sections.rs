@@ -61,7 +61,7 @@ pub fn run(data: &[u8]) {
         max_samples: 1 << 16,
         max_section_bytes: 1 << 20,
     };
-    let Ok(mut d) = Decoder::with_limits(Cursor::new(&file[..]), limits) else {
+    let Ok(mut d) = Decoder::with_limits(Cursor::new(file[..].to_vec()), limits) else {
         return;
     };
     let _ = d.stats();

@@ -8,7 +8,6 @@ use crate::mesh::{self, Mesh, MeshOptions, Vertex};
 use crate::methods::Method;
 use crate::model::Raster;
 use crate::quant::ErrorBound;
-use std::io::{Read, Seek};
 
 /// How a mesh's vertices are chosen.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -181,7 +180,7 @@ fn cell_edges(r: &Raster) -> Raster {
 
 /// The mesh of a `.vtz`: its stored sites (a prefix with `req.sites` / `req.levels`) when
 /// it has a sites section; otherwise the decoded raster, meshed as [`mesh_raster`] does.
-pub fn mesh_file<R: Read + Seek>(d: &mut Decoder<R>, req: &MeshRequest) -> Result<Mesh> {
+pub fn mesh_file(d: &mut Decoder, req: &MeshRequest) -> Result<Mesh> {
     let has_sites = d.info().tiles.is_none()
         && d.info()
             .sections

@@ -28,7 +28,9 @@ use crate::formats::{self, Format, ReadOptions, WriteOptions};
 use crate::methods::{self, DecodeJob, Method, Site, Stats};
 use crate::model::{Georef, InMemory, Raster, RowSource, SampleType, ValueMapping, Window};
 use crate::quant::ErrorBound;
+use crate::source::{FileSource, MemorySource, RangeSource, ReadSeekSource, Source};
 use std::io::{Cursor, Read, Seek};
+use std::sync::Arc;
 use std::path::Path;
 
 #[cfg(feature = "internals")]
@@ -110,12 +112,14 @@ pub fn decode(bytes: &[u8]) -> Result<Raster> {
 
 /// Decode `.vtz` bytes into a raster with options.
 pub fn decode_with(bytes: &[u8], opts: &DecodeOptions) -> Result<Raster> {
-    decode_from(Cursor::new(bytes), opts)
+    let mut d = Decoder::open_with_limits(Arc::new(MemorySource::new(bytes)), opts.limits)?;
+    d.options(opts.clone());
+    d.decode()
 }
 
 /// Decode a `.vtz` from a reader: only the header, the directory and the sections the
 /// decode needs are read.
-pub fn decode_from<R: Read + Seek>(reader: R, opts: &DecodeOptions) -> Result<Raster> {
+pub fn decode_from<R: Read + Seek + Send + 'static>(reader: R, opts: &DecodeOptions) -> Result<Raster> {
     let mut d = Decoder::with_limits(reader, opts.limits)?;
     d.options(opts.clone());
     d.decode()
@@ -376,8 +380,8 @@ pub struct SectionInfo {
 /// assert_eq!(buf, [5, 6]);
 /// # Ok::<(), vtz::Error>(())
 /// ```
-pub struct Decoder<R> {
-    rd: Opened<R>,
+pub struct Decoder {
+    rd: Opened,
     info: FileInfo,
     opts: DecodeOptions,
     /// The validity mask, once read for statistics or sites.
@@ -388,12 +392,12 @@ pub struct Decoder<R> {
 
 /// An opened file: untiled (version 1) or tiled (version 2). Decodes treat an untiled file
 /// as the one-tile case of a tiled one (`tiles::decode_bands`).
-pub(crate) enum Opened<R> {
-    Untiled(ContainerReader<R>),
-    Tiled(TiledReader<R>),
+pub(crate) enum Opened {
+    Untiled(ContainerReader<Source>),
+    Tiled(TiledReader),
 }
 
-impl<R: Read + Seek> Opened<R> {
+impl Opened {
     /// The limits the file was opened with.
     fn limits(&self) -> &Limits {
         match self {
@@ -403,20 +407,41 @@ impl<R: Read + Seek> Opened<R> {
     }
 }
 
-impl<R: Read + Seek> Decoder<R> {
+impl Decoder {
     /// Open with the default [`Limits`].
-    pub fn new(reader: R) -> Result<Decoder<R>> {
+    pub fn new<R: Read + Seek + Send + 'static>(reader: R) -> Result<Decoder> {
         Decoder::with_limits(reader, Limits::default())
     }
 
     /// Open with explicit limits on everything the file (or an option) would allocate.
-    pub fn with_limits(mut reader: R, limits: Limits) -> Result<Decoder<R>> {
-        let file_bytes = reader
-            .seek(std::io::SeekFrom::End(0))
-            .map_err(|e| Error::io("seeking", e))?;
-        reader
-            .seek(std::io::SeekFrom::Start(0))
-            .map_err(|e| Error::io("seeking", e))?;
+    pub fn with_limits<R: Read + Seek + Send + 'static>(
+        reader: R,
+        limits: Limits,
+    ) -> Result<Decoder> {
+        Decoder::open_with_limits(Arc::new(ReadSeekSource::new(reader)?), limits)
+    }
+
+    /// Open a local file (positioned reads of the ranges a decode needs).
+    ///
+    /// # Errors
+    /// [`Error::Io`] naming the path; what [`Decoder::open`] gives.
+    pub fn open_path(path: &std::path::Path, limits: Limits) -> Result<Decoder> {
+        Decoder::open_with_limits(Arc::new(FileSource::open(path)?), limits)
+            .map_err(|e| e.context(path.display()))
+    }
+
+    /// Open a file from any [`RangeSource`] (a file, memory, an object over HTTP or on S3)
+    /// with the default [`Limits`]: one read of its first
+    /// [`HEAD_BYTES`](crate::source::HEAD_BYTES) (a version-4 file's header, tile index and
+    /// global sections), then only the ranges each decode needs.
+    pub fn open(src: Arc<dyn RangeSource>) -> Result<Decoder> {
+        Decoder::open_with_limits(src, Limits::default())
+    }
+
+    /// [`Decoder::open`] with explicit limits.
+    pub fn open_with_limits(src: Arc<dyn RangeSource>, limits: Limits) -> Result<Decoder> {
+        let mut reader = Source::open(src)?;
+        let file_bytes = reader.len();
         let tiled = peek_version(&mut reader)? == VERSION_TILED;
         let rd = if tiled {
             Opened::Tiled(tiles::open(reader, limits)?)
@@ -818,7 +843,7 @@ fn stored_bound<R: Read + Seek>(rd: &mut ContainerReader<R>, idx: usize) -> Resu
 
 /// Read a file's header and directory without decoding samples.
 pub fn info(bytes: &[u8], limits: Limits) -> Result<FileInfo> {
-    Decoder::with_limits(Cursor::new(bytes), limits).map(|d| d.info)
+    Decoder::open_with_limits(Arc::new(MemorySource::new(bytes)), limits).map(|d| d.info)
 }
 
 /// A sample type a caller's buffer can have ([`Decoder::decode_into`]). Sealed.

@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::methods::{self, Method};
 use crate::model::{Raster, RowSource, Window};
 use crate::quant::ErrorBound;
-use std::io::{Read, Seek, Write};
+use std::io::{Seek, Write};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// The tile side an encode uses unless told (`--tile`), picked by measurement
@@ -305,10 +305,10 @@ pub fn encode_tiled<W: Write + Seek>(
 }
 
 /// Open a tiled file with the registry's section names.
-pub(crate) fn open<R: Read + Seek>(
-    inner: R,
+pub(crate) fn open(
+    inner: crate::source::Source,
     limits: crate::container::Limits,
-) -> Result<TiledReader<R>> {
+) -> Result<TiledReader> {
     TiledReader::new(inner, limits, decode::kind_names)
 }
 
@@ -317,8 +317,8 @@ pub(crate) fn open<R: Read + Seek>(
 /// raster, decoded (the window of it, on every thread) as one band with nothing to blend. A
 /// tiled file's tiles go through [`decode_tiles`]. Gives back the tiles skipped as corrupt
 /// (`opts.skip_corrupt`).
-pub(crate) fn decode_bands<R: Read + Seek>(
-    rd: &mut Opened<R>,
+pub(crate) fn decode_bands(
+    rd: &mut Opened,
     opts: &DecodeOptions,
     sink: &mut dyn FnMut(Raster) -> Result<()>,
     progress: &(dyn Fn(f64) + Sync),
@@ -364,8 +364,8 @@ pub(crate) fn check_tiled_options(opts: &DecodeOptions) -> Result<()> {
 /// Decode a window of a tiled file band by band: a few rows of tiles at a time are read
 /// (one reader) and decoded (every thread), and each band of the window is blended from
 /// them, its rows side by side.
-fn decode_tiles<R: Read + Seek>(
-    rd: &mut TiledReader<R>,
+fn decode_tiles(
+    rd: &mut TiledReader,
     opts: &DecodeOptions,
     sink: &mut dyn FnMut(Raster) -> Result<()>,
     progress: &(dyn Fn(f64) + Sync),
@@ -622,8 +622,8 @@ fn blend(
 /// holds an overview sample decodes at its own 2^k lattice (a row of tiles at a time, on
 /// every thread), and the sample takes the tile's value at the lattice point nearest it
 /// (ties to the lower; within the tile). Gives back the tiles skipped as corrupt.
-pub(crate) fn decode_overview<R: Read + Seek>(
-    rd: &mut TiledReader<R>,
+pub(crate) fn decode_overview(
+    rd: &mut TiledReader,
     opts: &DecodeOptions,
     progress: &(dyn Fn(f64) + Sync),
 ) -> Result<(Raster, Vec<String>)> {
@@ -745,8 +745,8 @@ pub(crate) fn decode_overview<R: Read + Seek>(
 /// with `opts.scale` the method's own surface where it has one; a tiled file: its bands
 /// joined, with `opts.scale` the decoded samples interpolated as every method's are
 /// (`codec::resample`: continuous across tile borders by construction).
-pub(crate) fn decode_all<R: Read + Seek>(
-    rd: &mut Opened<R>,
+pub(crate) fn decode_all(
+    rd: &mut Opened,
     opts: &DecodeOptions,
     progress: &(dyn Fn(f64) + Sync),
 ) -> Result<(Raster, Vec<String>)> {

@@ -8,6 +8,7 @@ use super::{
 };
 use crate::error::{Error, Result};
 use crate::model::Window;
+use crate::source::Source;
 use std::io::{Cursor, Read, Seek, SeekFrom, Write};
 
 /// The container version of tiled files.
@@ -413,8 +414,8 @@ pub fn peek_version<R: Read + Seek>(inner: &mut R) -> Result<u16> {
 
 /// Reads a version-2 file: the header and the index on opening (two reads), then any tile
 /// on demand.
-pub struct TiledReader<R> {
-    inner: R,
+pub struct TiledReader {
+    inner: Source,
     header: Header,
     grid: TileGrid,
     tiles: Vec<TileEntry>,
@@ -423,11 +424,11 @@ pub struct TiledReader<R> {
     names: KindNames,
 }
 
-impl<R: Read + Seek> TiledReader<R> {
+impl TiledReader {
     /// Open a version-2 file and check its framing: header checksum and fields, the index's
     /// checksum, that the tile blocks lie back to back between the global sections and the
     /// index, each entry's fields, and that the index ends the file.
-    pub fn new(mut inner: R, limits: Limits, names: KindNames) -> Result<Self> {
+    pub fn new(mut inner: Source, limits: Limits, names: KindNames) -> Result<Self> {
         let file_len = inner
             .seek(SeekFrom::End(0))
             .map_err(|e| Error::io("measuring the file", e))?;
