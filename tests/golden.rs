@@ -531,6 +531,76 @@ fn the_tiled_golden_file_decodes_to_its_expected_samples() {
         .unwrap();
 }
 
+/// The version-4 golden files: the version-2 file's window, tiles, bound and sections, laid
+/// out for range reads (index first, progressive chunks), coded by `best` (default effort:
+/// the range-coded residual codings) and by the fast coding (effort 1). Each overview of
+/// them is pinned too: it reads a prefix of each block.
+#[test]
+fn the_version_4_golden_files_decode_to_their_expected_samples() {
+    for (name, effort) in [("v4_kauai_tiles", None), ("v4_kauai_tiles_fast", Some(1u8))] {
+        // Both with the residual layer (interpolation, range-coded or fast), whose tiles
+        // are progressive: several chunks each.
+        let vtz_path = dir().join(format!("{name}.vtz"));
+        let exp_path = dir().join(format!("{name}.expected.f32"));
+        let ovr_path = dir().join(format!("{name}.overviews.f32"));
+        let ovr = |bytes: &[u8], k: u32| {
+            let o = common::decode_opts(|o| o.overview = Some(k));
+            vtz::decode_with(bytes, &o).unwrap_or_else(|e| panic!("{name} overview {k}: {e}"))
+        };
+        if missing(&vtz_path) {
+            let mut src = window_of(360, 952, 96, 64);
+            src.gdal_metadata = Some(GDAL_METADATA.into());
+            let mut opts = encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(2.0)));
+            opts.tile = Some(32);
+            opts.effort = effort;
+            opts.metadata = Some("{\"golden\":\"v4\"}".into());
+            let bytes = vtz::encode(&src, &opts).unwrap();
+            std::fs::write(&vtz_path, &bytes).unwrap();
+            std::fs::write(&exp_path, as_f32_bytes(&vtz::decode(&bytes).unwrap())).unwrap();
+            let mut o = Vec::new();
+            for k in 1..=3 {
+                o.extend(as_f32_bytes(&ovr(&bytes, k)));
+            }
+            std::fs::write(&ovr_path, o).unwrap();
+        }
+        let bytes = std::fs::read(&vtz_path).unwrap();
+        assert_eq!(u16::from_le_bytes([bytes[8], bytes[9]]), 4, "{name}: a version-4 file");
+        let info = vtz::info(&bytes, Default::default()).unwrap();
+        assert_eq!(info.version, 4);
+        let t = info.tiles.as_ref().expect("tiles");
+        assert_eq!((t.cols, t.rows, t.tile_width, t.tile_height), (3, 2, 32, 32));
+        assert_eq!(info.sections.len(), 2, "metadata and gdal-metadata");
+        // Chunk counts from the index (each entry: 40 bytes, then 8 per chunk).
+        let h = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        let mut at = 24 + h;
+        let mut chunks = Vec::new();
+        for _ in 0..6 {
+            chunks.push(bytes[at + 4]);
+            at += 40 + 8 * bytes[at + 4] as usize;
+        }
+        assert!(chunks.iter().filter(|&&c| c > 1).count() >= 4, "{name}: chunks {chunks:?}");
+        let r = vtz::decode(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!((r.width, r.height), (96, 64));
+        assert_eq!(r.nodata, Some(-32768.0));
+        assert!(r.valid_count() < r.len(), "the window has voids");
+        let expected = std::fs::read(&exp_path).unwrap();
+        assert!(as_f32_bytes(&r) == expected, "{name}: decoded samples differ");
+        let mut got = Vec::new();
+        for k in 1..=3 {
+            got.extend(as_f32_bytes(&ovr(&bytes, k)));
+        }
+        let expected = std::fs::read(&ovr_path).unwrap();
+        assert!(got == expected, "{name}: overviews 1-3 differ");
+        vtz::Decoder::new(std::io::Cursor::new(bytes.to_vec()))
+            .unwrap()
+            .verify()
+            .unwrap();
+        for n in 0..bytes.len() {
+            assert!(vtz::decode(&bytes[..n]).is_err(), "{name}: prefix of {n} bytes decoded");
+        }
+    }
+}
+
 /// The source of the point-set golden file: 300 points on a 0.01 m grid (coordinates
 /// `k / 100`, so the positions are lossless) in UTM 4N, with two columns — `z`, a smooth
 /// surface with noise, and `intensity`, integers — and 24 points repeating an earlier

@@ -159,6 +159,42 @@ pub(crate) fn crop_overview(mut r: Raster, win: Window) -> Raster {
     r
 }
 
+/// For a tile's block (read whole), the bytes of it an overview K = 1, 2, … decode reads
+/// (element K − 1): the primary section must be the block's last, and its method must code
+/// coarse levels first ([`methods::Representation::overview_prefixes`]); otherwise empty.
+pub(crate) fn overview_prefixes<R: Read + Seek>(rd: &mut ContainerReader<R>) -> Result<Vec<u64>> {
+    let idx = rd.header().primary as usize;
+    if idx + 1 != rd.entries().len() {
+        return Ok(Vec::new());
+    }
+    let entry = rd.entries()[idx].clone();
+    let Some(method) = methods::by_section(entry.kind) else {
+        return Ok(Vec::new());
+    };
+    let header = rd.header().clone();
+    let mask = rd.read_mask()?;
+    let flat = rd.read_flat(mask.as_deref())?;
+    let method_mask = method_mask(mask.as_deref(), flat.as_ref(), header.samples() as usize);
+    let payload = rd.read_section(idx)?;
+    let job = DecodeJob {
+        payload: &payload,
+        header: &header,
+        mask: method_mask.as_deref().or(mask.as_deref()),
+        window: Window::full(header.width as usize, header.height as usize),
+        sites: None,
+        levels: None,
+        threads: 1,
+        flat: flat.as_ref(),
+        base: None,
+        progress: &|_| {},
+    };
+    Ok(method
+        .overview_prefixes(&job)?
+        .into_iter()
+        .map(|e| entry.offset + e as u64)
+        .collect())
+}
+
 /// Decode one container (an untiled file, or one tile's block) with options into a raster:
 /// the window of it that `opts` asks for, on `opts.threads` threads.
 pub(crate) fn decode_reader<R: Read + Seek>(

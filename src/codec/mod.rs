@@ -21,7 +21,7 @@ pub use surface::Surface;
 pub use tiles::{DEFAULT_TILE, tile_count};
 pub use verify::{Verified, verify_points};
 
-use crate::container::tiled::{TiledReader, VERSION_TILED, peek_version};
+use crate::container::tiled::{TiledReader, VERSION_CLOUD, VERSION_TILED, peek_version};
 use crate::container::{ContainerReader, Limits, SF_REQUIRED};
 use crate::error::{Error, Result};
 use crate::formats::{self, Format, ReadOptions, WriteOptions};
@@ -267,6 +267,9 @@ pub fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> Resu
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
 pub struct FileInfo {
+    /// The container version (spec/FORMAT.md): 1 untiled, 2 or 4 tiled (4: laid out for
+    /// range reads, what vtz writes).
+    pub version: u16,
     /// Bytes of the whole file.
     pub file_bytes: u64,
     /// Raster width in samples.
@@ -287,7 +290,7 @@ pub struct FileInfo {
     pub primary: usize,
     /// The section directory, in file order (of a tiled file: its global sections).
     pub sections: Vec<SectionInfo>,
-    /// A tiled file's grid and index (container version 2); `None` for an untiled file.
+    /// A tiled file's grid and index (container version 2 or 4); `None` for an untiled file.
     pub tiles: Option<TilesInfo>,
 }
 
@@ -442,7 +445,8 @@ impl Decoder {
     pub fn open_with_limits(src: Arc<dyn RangeSource>, limits: Limits) -> Result<Decoder> {
         let mut reader = Source::open(src)?;
         let file_bytes = reader.len();
-        let tiled = peek_version(&mut reader)? == VERSION_TILED;
+        let version = peek_version(&mut reader)?;
+        let tiled = version == VERSION_TILED || version == VERSION_CLOUD;
         let rd = if tiled {
             Opened::Tiled(tiles::open(reader, limits)?)
         } else {
@@ -503,6 +507,7 @@ impl Decoder {
             }
         };
         let info = FileInfo {
+            version,
             file_bytes,
             width: h.width,
             height: h.height,

@@ -7,7 +7,7 @@ use super::decode::{self, check_output};
 use super::encode::{EncodeReport, encode_parts};
 use super::options::{DecodeOptions, EncodeOptions, SectionChoice};
 use crate::container::tiled::{TileGrid, TiledReader, TiledWriter, tile_block, tile_name};
-use crate::container::{Header, SectionKind};
+use crate::container::{ContainerReader, Header, SectionKind};
 use crate::error::{Error, Result};
 use crate::methods::{self, Method};
 use crate::model::{Raster, RowSource, Window};
@@ -233,10 +233,25 @@ pub fn encode_tiled<W: Write + Seek>(
                             let r =
                                 methods::with_threads(1, || encode_parts(t, topts, &mut |_| {}))
                                     .map_err(|e| e.context(tile_name(grid, *k)));
-                            let r = r.map(|(hd, sections, rep)| {
+                            let r = r.and_then(|(hd, sections, rep)| {
                                 let kind = sections[hd.primary as usize].kind;
                                 let block = tile_block(hd.primary, &sections);
-                                (block, kind, t.valid_count() as u64, hd.range, rep)
+                                // Where overviews of the tile end (version 4's chunks):
+                                // read back from the block as a decoder reads it.
+                                let prefixes = {
+                                    let len = block.len() as u64;
+                                    let mut rd = ContainerReader::tile(
+                                        std::io::Cursor::new(&block[..]),
+                                        hd.clone(),
+                                        len,
+                                        crate::container::Limits::default(),
+                                        decode::kind_names,
+                                        "tile",
+                                    )?;
+                                    decode::overview_prefixes(&mut rd)
+                                        .map_err(|e| e.context(tile_name(grid, *k)))?
+                                };
+                                Ok((block, kind, t.valid_count() as u64, hd.range, rep, prefixes))
                             });
                             // The receiver has gone only when a tile before failed.
                             let _ = tx.send((i, r));
@@ -251,8 +266,8 @@ pub fn encode_tiled<W: Write + Seek>(
                 // Write every tile whose turn has come, in tile order.
                 while let Some(r) = ready.get_mut(next).and_then(Option::take) {
                     next += 1;
-                    let written = r.and_then(|(block, kind, valid, range, rep)| {
-                        writer.push(&block, kind, valid, range, rep.max_error)?;
+                    let written = r.and_then(|(block, kind, valid, range, rep, prefixes)| {
+                        writer.push(&block, kind, valid, range, rep.max_error, &prefixes)?;
                         Ok(rep)
                     });
                     let rep = match written {
@@ -428,11 +443,10 @@ fn decode_tiles(
                 .copied()
                 .filter(|k| rows.contains(&(k / cols)))
                 .collect();
-            // Reading is sequential (one reader); decoding is parallel.
-            let mut blocks = Vec::with_capacity(ks.len());
-            for &k in &ks {
-                blocks.push((k, rd.tile_block(k)));
-            }
+            // One read for the blocks of these rows of tiles (a remote source fetches them
+            // at once); decoding is parallel.
+            let blocks: Vec<(usize, Result<Vec<u8>>)> =
+                ks.iter().copied().zip(rd.tile_blocks(&ks, 0)?).collect();
             let opener = rd.opener();
             let out: Vec<(usize, Decoded)> = pool.install(|| {
                 use rayon::prelude::*;
@@ -660,11 +674,16 @@ pub(crate) fn decode_overview(
     let pool = pool(opts.threads)?;
     let done = AtomicUsize::new(0);
     for (tr, rows) in &trows {
-        let mut blocks = Vec::with_capacity(tcols.len());
-        for (tc, cols_here) in &tcols {
-            let t = tr * cols + tc;
-            blocks.push((t, cols_here.clone(), rd.tile_block(t)));
-        }
+        // One read for the row of tiles: in version 4 each block's first chunks, the
+        // levels this overview needs.
+        let ts: Vec<usize> = tcols.iter().map(|(tc, _)| tr * cols + tc).collect();
+        let got = rd.tile_blocks(&ts, k)?;
+        let blocks: Vec<(usize, std::ops::Range<usize>, Result<Vec<u8>>)> = ts
+            .iter()
+            .zip(&tcols)
+            .zip(got)
+            .map(|((&t, (_, cr)), b)| (t, cr.clone(), b))
+            .collect();
         let opener = rd.opener();
         let decoded: Vec<(usize, std::ops::Range<usize>, Result<Raster>)> = pool.install(|| {
             use rayon::prelude::*;

@@ -14,6 +14,10 @@ impl<'a> ByteReader<'a> {
     pub fn new(data: &'a [u8], what: &'a str) -> Self {
         ByteReader { data, pos: 0, what }
     }
+    /// Bytes read so far.
+    pub fn position(&self) -> usize {
+        self.pos
+    }
     pub fn remaining(&self) -> usize {
         self.data.len() - self.pos
     }

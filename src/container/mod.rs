@@ -170,6 +170,9 @@ pub struct ContainerReader<R> {
     header: Header,
     entries: Vec<SectionEntry>,
     limits: Limits,
+    /// The bytes `inner` holds: the file's length, or for a version-4 tile read for an
+    /// overview a prefix of its block, whose last (primary) section may end beyond it.
+    available: u64,
 }
 
 impl<R: Read + Seek> ContainerReader<R> {
@@ -243,22 +246,30 @@ impl<R: Read + Seek> ContainerReader<R> {
             header,
             entries,
             limits,
+            available: file_len,
         })
     }
 
     /// A reader over one tile of a version-2 file: `inner` holds the tile's block
     /// (spec/FORMAT.md, "Tile block"), `header` the tile's own header (its size, and the
     /// file's sample type, mapping, nodata and georef). `what` names the tile in errors.
+    ///
+    /// `block_len` is the block's length; `inner` may hold only a prefix of it (a version-4
+    /// tile read for an overview): the directory and every section but the primary, which
+    /// is then the last, must lie in the prefix, and the primary's payload is what of it the
+    /// prefix holds ([`ContainerReader::read_section`]).
     pub fn tile(
         mut inner: R,
         mut header: Header,
+        block_len: u64,
         limits: Limits,
         names: KindNames,
         what: &str,
     ) -> Result<Self> {
-        let len = inner
+        let available = inner
             .seek(SeekFrom::End(0))
             .map_err(|e| Error::io("measuring the tile", e))?;
+        let len = block_len;
         inner
             .seek(SeekFrom::Start(0))
             .map_err(|e| Error::io("seeking", e))?;
@@ -279,11 +290,24 @@ impl<R: Read + Seek> ContainerReader<R> {
         header.primary = primary;
         let entries = read_directory(&mut inner, 4, len, &limits, names, what)?;
         check_primary(&entries, primary).map_err(|e| e.context(what))?;
+        if available < len {
+            // A prefix: only the primary, the last section, may reach beyond it.
+            let last = entries.len().checked_sub(1);
+            for (i, e) in entries.iter().enumerate() {
+                if e.offset + e.length > available && (Some(i) != last || i != primary as usize) {
+                    return Err(Error::corrupt(format!(
+                        "{what}: section {i} ({}) lies beyond the block's first chunks",
+                        e.name
+                    )));
+                }
+            }
+        }
         Ok(ContainerReader {
             inner,
             header,
             entries,
             limits,
+            available: available.min(len),
         })
     }
 }
@@ -362,6 +386,13 @@ impl<R: Read + Seek> ContainerReader<R> {
         self.inner
             .seek(SeekFrom::Start(e.offset))
             .map_err(|err| Error::io("seeking", err))?;
+        if e.offset + e.length > self.available {
+            // The primary section of a tile read as a prefix (checked on opening): what of
+            // it the prefix holds, whose bytes the chunks' checksums covered.
+            let mut buf = vec![0u8; (self.available - e.offset.min(self.available)) as usize];
+            read_exact(&mut self.inner, &mut buf, &format!("{} section", e.name))?;
+            return Ok(buf);
+        }
         // The length was checked against the file length when the directory was read.
         let mut buf = vec![0u8; e.length as usize];
         read_exact(&mut self.inner, &mut buf, &format!("{} section", e.name))?;
@@ -385,6 +416,20 @@ pub(crate) fn read_directory<R: Read + Seek>(
     names: KindNames,
     what: &str,
 ) -> Result<Vec<SectionEntry>> {
+    read_directory_to(inner, dir_pos, end, true, limits, names, what).map(|(e, _)| e)
+}
+
+/// [`read_directory`], where the payloads end exactly at `end` (`exact`) or anywhere up to
+/// it; gives the entries and where the payloads end.
+pub(crate) fn read_directory_to<R: Read + Seek>(
+    inner: &mut R,
+    dir_pos: u64,
+    end: u64,
+    exact: bool,
+    limits: &Limits,
+    names: KindNames,
+    what: &str,
+) -> Result<(Vec<SectionEntry>, u64)> {
     let pre = |m: String| match (what.is_empty(), m.starts_with("truncated")) {
         (true, true) => format!("file is {m}"),
         (true, false) => m,
@@ -476,13 +521,13 @@ pub(crate) fn read_directory<R: Read + Seek>(
         });
         offset = e;
     }
-    if offset != end {
+    if exact && offset != end {
         return Err(Error::corrupt(pre(format!(
             "{} unexpected bytes after the last section",
             end - offset
         ))));
     }
-    Ok(entries)
+    Ok((entries, offset))
 }
 
 /// Check that the primary index names a representation section (any section when there

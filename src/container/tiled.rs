@@ -4,15 +4,25 @@
 use super::bytes::{ByteReader, PutLe};
 use super::{
     ContainerReader, DIR_ENTRY_LEN, Header, KindNames, Limits, MAGIC, Section, SectionEntry,
-    SectionKind, checksum_ok, read_directory, read_exact,
+    SectionKind, checksum_ok, read_exact,
 };
 use crate::error::{Error, Result};
 use crate::model::Window;
 use crate::source::Source;
 use std::io::{Cursor, Read, Seek, SeekFrom, Write};
 
-/// The container version of tiled files.
+/// The container version of tiled files with the index at the end (read forever, no
+/// longer written).
 pub const VERSION_TILED: u16 = 2;
+/// The container version of tiled files laid out for range reads: header, tile index and
+/// global sections first, progressive tile blocks (spec/FORMAT.md, "Version 4").
+pub const VERSION_CLOUD: u16 = 4;
+/// Bytes of a version-4 index entry before its chunk table.
+pub const CLOUD_ENTRY_LEN: usize = 40;
+/// Most chunks a version-4 tile block has (the anchors and up to 12 levels).
+pub const MAX_CHUNKS: usize = 13;
+/// Bytes of the tile fields at the end of a version-4 header body.
+const CLOUD_FIELDS_LEN: usize = 16;
 /// Bytes of one tile index entry.
 pub const INDEX_ENTRY_LEN: usize = 56;
 /// Smallest tile side a file may declare (unless the raster itself is smaller).
@@ -239,6 +249,24 @@ pub struct TileEntry {
     pub range: Option<(f64, f64)>,
     /// The max error the tile's encoder achieved (0 = lossless).
     pub max_error: f64,
+    /// Version 4: the block's chunks, coarse to fine, each `(end, crc)`: it ends `end` bytes
+    /// into the block (the last at `length`) and its bytes have CRC-32 `crc`. An overview K
+    /// ≥ 1 reads chunks `0 ..= max(0, n − 1 − K)` of n. Empty in version 2 (`crc` covers
+    /// the block).
+    pub chunks: Vec<(u32, u32)>,
+}
+
+impl TileEntry {
+    /// The bytes of the block an overview-`k` decode reads (0 = a full decode): a prefix of
+    /// the block in version 4, the block in version 2.
+    pub fn prefix(&self, k: u32) -> u64 {
+        let n = self.chunks.len();
+        if k == 0 || n == 0 {
+            return self.length;
+        }
+        let j = (n - 1).saturating_sub(k as usize);
+        self.chunks[j].0 as u64
+    }
 }
 
 /// The bytes of a section directory (count, entries, checksum) followed by the payloads.
@@ -269,9 +297,9 @@ pub fn tile_block(primary: u16, sections: &[Section]) -> Vec<u8> {
     out
 }
 
-/// The fixed part and header of a version-2 file. `header.primary` must be 0 and
+/// The fixed part and header of a version-4 file. `header.primary` must be 0 and
 /// `header.range` is not stored (the index holds each tile's).
-fn head_bytes(header: &Header, grid: &TileGrid, index_offset: u64, index_len: u64) -> Vec<u8> {
+fn cloud_head_bytes(header: &Header, grid: &TileGrid, index_len: u32) -> Vec<u8> {
     let mut h = header.clone();
     h.primary = 0;
     h.range = None;
@@ -279,11 +307,10 @@ fn head_bytes(header: &Header, grid: &TileGrid, index_offset: u64, index_len: u6
     body.put_u32(grid.tile_w);
     body.put_u32(grid.tile_h);
     body.put_u32(grid.margin);
-    body.put_u64(index_offset);
-    body.put_u64(index_len);
+    body.put_u32(index_len);
     let mut out = Vec::with_capacity(20 + body.len());
     out.extend_from_slice(&MAGIC);
-    out.put_u16(VERSION_TILED);
+    out.put_u16(VERSION_CLOUD);
     out.put_u16(0);
     out.put_u32(body.len() as u32);
     out.extend_from_slice(&body);
@@ -292,38 +319,56 @@ fn head_bytes(header: &Header, grid: &TileGrid, index_offset: u64, index_len: u6
     out
 }
 
-/// Writes a version-2 file to any seekable sink: the header (its index position filled in
-/// at the end), the global sections, then tile blocks in tile order, then the index.
+/// Where tile blocks wait until the index is known: a version-4 file puts its index before
+/// them. Up to [`SPOOL_MEMORY`] bytes in memory, beyond that an unnamed temporary file
+/// (removed by the system however the process ends), so a large mosaic's encode stays
+/// within its memory budget.
+enum Spool {
+    Memory(Vec<u8>),
+    File(std::fs::File),
+}
+
+/// Bytes of tile blocks a writer keeps in memory before it spools them to a temporary file.
+const SPOOL_MEMORY: usize = 64 << 20;
+
+/// Writes a tiled file (version 4) to any seekable sink, in two passes: tile blocks as
+/// they come (in tile order) into a spool, then at [`TiledWriter::finish`] the header, the
+/// index, the global sections and the blocks copied from the spool.
 pub struct TiledWriter<W: Write + Seek> {
     out: W,
     header: Header,
     grid: TileGrid,
+    global: Vec<u8>,
     entries: Vec<TileEntry>,
+    spool: Spool,
     pos: u64,
 }
 
 impl<W: Write + Seek> TiledWriter<W> {
-    /// Start a file: writes the header and the global sections (metadata, GDAL metadata).
-    pub fn new(mut out: W, header: &Header, grid: TileGrid, global: &[Section]) -> Result<Self> {
-        let head = head_bytes(header, &grid, 0, 0);
+    /// Start a file with its global sections (metadata, GDAL metadata); nothing is written
+    /// to `out` before [`TiledWriter::finish`].
+    pub fn new(out: W, header: &Header, grid: TileGrid, global: &[Section]) -> Result<Self> {
         let mut block = Vec::new();
         directory_bytes(&mut block, global);
-        let io = |e| Error::io("writing the file", e);
-        out.write_all(&head).map_err(io)?;
-        out.write_all(&block).map_err(io)?;
         Ok(TiledWriter {
             out,
             header: header.clone(),
             grid,
+            global: block,
             entries: Vec::with_capacity(grid.count().min(1 << 20) as usize),
-            pos: (head.len() + block.len()) as u64,
+            spool: Spool::Memory(Vec::new()),
+            pos: 0,
         })
     }
     /// Tiles written so far.
     pub fn written(&self) -> usize {
         self.entries.len()
     }
-    /// Append the next tile's block (tiles must come in tile order).
+    /// Append the next tile's block (tiles must come in tile order). `prefixes` are the
+    /// bytes of the block an overview K = 1, 2, … decode reads (non-decreasing towards
+    /// coarser K; empty when every overview reads the whole block): they become the block's
+    /// chunks, coarsest first.
+    #[allow(clippy::too_many_arguments)]
     pub fn push(
         &mut self,
         block: &[u8],
@@ -331,26 +376,58 @@ impl<W: Write + Seek> TiledWriter<W> {
         valid: u64,
         range: Option<(f64, f64)>,
         max_error: f64,
+        prefixes: &[u64],
     ) -> Result<()> {
         if self.entries.len() as u64 >= self.grid.count() {
             return Err(Error::invalid("more tiles than the grid has"));
         }
-        self.out
-            .write_all(block)
-            .map_err(|e| Error::io("writing the file", e))?;
+        let len = block.len() as u64;
+        if len > u32::MAX as u64 {
+            return Err(Error::limit(format!(
+                "a tile block of {len} bytes is over the 4 GiB a version-4 index holds: use smaller tiles"
+            )));
+        }
+        // Chunk ends, coarsest first: overview K = L reads the first, K = 1 the L-th, a full
+        // decode every byte.
+        let mut ends: Vec<u64> = prefixes.iter().rev().copied().collect();
+        ends.push(len);
+        if ends.len() > MAX_CHUNKS || ends.windows(2).any(|w| w[0] > w[1]) || ends[0] < 12 {
+            ends = vec![len];
+        }
+        let mut chunks = Vec::with_capacity(ends.len());
+        let mut from = 0usize;
+        for &e in &ends {
+            chunks.push((e as u32, crc32fast::hash(&block[from..e as usize])));
+            from = e as usize;
+        }
+        let io = |e| Error::io("writing the file", e);
+        match &mut self.spool {
+            Spool::Memory(v) if v.len() + block.len() <= SPOOL_MEMORY => {
+                v.extend_from_slice(block)
+            }
+            Spool::Memory(v) => {
+                let mut f = tempfile::tempfile().map_err(|e| Error::io("creating a temporary file", e))?;
+                f.write_all(v).map_err(io)?;
+                f.write_all(block).map_err(io)?;
+                self.spool = Spool::File(f);
+            }
+            Spool::File(f) => f.write_all(block).map_err(io)?,
+        }
         self.entries.push(TileEntry {
             offset: self.pos,
-            length: block.len() as u64,
-            crc: crc32fast::hash(block),
+            length: len,
+            crc: 0,
             kind,
             valid,
             range,
             max_error,
+            chunks,
         });
-        self.pos += block.len() as u64;
+        self.pos += len;
         Ok(())
     }
-    /// Write the index and the header's pointer to it; gives back the sink.
+    /// Write the header, the index, the global sections and the blocks; gives back the
+    /// sink.
     pub fn finish(mut self) -> Result<W> {
         if self.entries.len() as u64 != self.grid.count() {
             return Err(Error::invalid(format!(
@@ -359,28 +436,39 @@ impl<W: Write + Seek> TiledWriter<W> {
                 self.grid.count()
             )));
         }
-        let mut idx = Vec::with_capacity(8 + self.entries.len() * INDEX_ENTRY_LEN);
+        let mut idx = Vec::with_capacity(8 + self.entries.len() * (CLOUD_ENTRY_LEN + 16));
         idx.put_u32(self.entries.len() as u32);
         for e in &self.entries {
-            idx.put_u64(e.offset);
-            idx.put_u64(e.length);
-            idx.put_u32(e.crc);
             idx.put_u16(e.kind.code());
             idx.put_u16(if e.range.is_some() { TF_RANGE } else { 0 });
+            idx.push(e.chunks.len() as u8);
+            idx.extend_from_slice(&[0, 0, 0]);
             idx.put_u64(e.valid);
             let (lo, hi) = e.range.unwrap_or((0.0, 0.0));
             idx.put_f64(lo);
             idx.put_f64(hi);
             idx.put_f64(e.max_error);
+            for &(end, crc) in &e.chunks {
+                idx.put_u32(end);
+                idx.put_u32(crc);
+            }
         }
         let crc = crc32fast::hash(&idx);
         idx.put_u32(crc);
+        let index_len = u32::try_from(idx.len())
+            .map_err(|_| Error::limit("a tile index over 4 GiB: use larger tiles"))?;
+        let head = cloud_head_bytes(&self.header, &self.grid, index_len);
         let io = |e| Error::io("writing the file", e);
-        self.out.write_all(&idx).map_err(io)?;
-        let head = head_bytes(&self.header, &self.grid, self.pos, idx.len() as u64);
-        self.out.seek(SeekFrom::Start(0)).map_err(io)?;
         self.out.write_all(&head).map_err(io)?;
-        self.out.seek(SeekFrom::End(0)).map_err(io)?;
+        self.out.write_all(&idx).map_err(io)?;
+        self.out.write_all(&self.global).map_err(io)?;
+        match &mut self.spool {
+            Spool::Memory(v) => self.out.write_all(v).map_err(io)?,
+            Spool::File(f) => {
+                f.seek(SeekFrom::Start(0)).map_err(io)?;
+                std::io::copy(f, &mut self.out).map_err(io)?;
+            }
+        }
         self.out.flush().map_err(io)?;
         Ok(self.out)
     }
@@ -412,8 +500,309 @@ pub fn peek_version<R: Read + Seek>(inner: &mut R) -> Result<u16> {
     Ok(u16::from_le_bytes([head[8], head[9]]))
 }
 
-/// Reads a version-2 file: the header and the index on opening (two reads), then any tile
-/// on demand.
+/// The index entry's fields both versions share, checked: the method, flags, valid count,
+/// range and max error of tile `k`.
+#[allow(clippy::too_many_arguments)]
+fn check_entry(
+    header: &Header,
+    grid: &TileGrid,
+    k: usize,
+    kind: SectionKind,
+    flags: u16,
+    valid: u64,
+    lo: f64,
+    hi: f64,
+    max_error: f64,
+) -> Result<Option<(f64, f64)>> {
+    let t = |m: String| {
+        let w = grid.rect(k);
+        Error::corrupt(format!("tile index: tile {k} (at {},{}): {m}", w.x, w.y))
+    };
+    if kind.code() == 0 || !kind.may_be_primary() {
+        return Err(t(format!("method type {} is not a representation", kind.0)));
+    }
+    if flags & !TF_RANGE != 0 {
+        return Err(t(format!("unknown flags 0x{:04x}", flags & !TF_RANGE)));
+    }
+    let w = grid.ext(k);
+    if valid > (w.width * w.height) as u64 {
+        return Err(t(format!(
+            "{valid} valid samples in a {}x{} tile",
+            w.width, w.height
+        )));
+    }
+    let range = if flags & TF_RANGE != 0 {
+        if !(lo.is_finite() && hi.is_finite() && lo <= hi) || valid == 0 {
+            return Err(t(format!("range {lo}..{hi} is not valid")));
+        }
+        // The range is of sample values: each end a value of the sample type.
+        for (what, v) in [("minimum", lo), ("maximum", hi)] {
+            header
+                .sample_type
+                .check_holds(what, v, header.mapping)
+                .map_err(t)?;
+        }
+        Some((lo, hi))
+    } else {
+        if valid != 0 || lo.to_bits() != 0 || hi.to_bits() != 0 {
+            return Err(t("no range flag, but a valid count or range".into()));
+        }
+        None
+    };
+    if !(max_error.is_finite() && max_error >= 0.0) {
+        return Err(t(format!("max error {max_error} is not valid")));
+    }
+    Ok(range)
+}
+
+/// Version 2's index (at `index_offset`, ending the file) and global directory (from
+/// `global_start` to the first block).
+#[allow(clippy::too_many_arguments)]
+fn read_index_v2(
+    inner: &mut Source,
+    header: &Header,
+    grid: &TileGrid,
+    global_start: u64,
+    index_offset: u64,
+    index_len: u64,
+    limits: &Limits,
+    names: KindNames,
+) -> Result<(Vec<TileEntry>, Vec<SectionEntry>)> {
+    let file_len = inner.len();
+    let n = grid.count();
+    let want = 8 + n.saturating_mul(INDEX_ENTRY_LEN as u64);
+    if index_len != want {
+        return Err(Error::corrupt(format!(
+            "header: the index of {n} tiles needs {want} bytes, the header says {index_len}"
+        )));
+    }
+    if index_len > limits.max_section_bytes {
+        return Err(Error::limit(format!(
+            "tile index of {index_len} bytes is over the limit of {}",
+            limits.max_section_bytes
+        )));
+    }
+    match index_offset.checked_add(index_len) {
+        Some(end) if index_offset >= global_start && end <= file_len => {
+            if end != file_len {
+                return Err(Error::corrupt(format!(
+                    "{} unexpected bytes after the tile index",
+                    file_len - end
+                )));
+            }
+        }
+        _ => {
+            return Err(Error::corrupt(format!(
+                "file is truncated (or the header is corrupt): the tile index should be at bytes {index_offset}..{} of a {file_len}-byte file",
+                index_offset.saturating_add(index_len)
+            )));
+        }
+    }
+    let ibuf = inner.read_at(index_offset..index_offset + index_len)?;
+    let (ib, crc_bytes) = ibuf.split_at(ibuf.len() - 4);
+    if !checksum_ok(crc32fast::hash(ib), crc_bytes) {
+        return Err(Error::corrupt("tile index checksum mismatch"));
+    }
+    let mut r = ByteReader::new(ib, "tile index");
+    let count = r.u32("tile count")? as u64;
+    if count != n {
+        return Err(r.corrupt(format!("{count} tiles listed, the grid has {n}")));
+    }
+    let mut tiles = Vec::with_capacity(n as usize);
+    let mut first = None;
+    let mut expect: Option<u64> = None;
+    for k in 0..n as usize {
+        let t = |m: String| {
+            let w = grid.rect(k);
+            Error::corrupt(format!("tile index: tile {k} (at {},{}): {m}", w.x, w.y))
+        };
+        let offset = r.u64("offset")?;
+        let length = r.u64("length")?;
+        let crc = r.u32("checksum")?;
+        let kind = SectionKind::from_code(r.u16("method")?);
+        let flags = r.u16("flags")?;
+        let valid = r.u64("valid count")?;
+        let lo = r.f64("minimum")?;
+        let hi = r.f64("maximum")?;
+        let max_error = r.f64("max error")?;
+        if let Some(e) = expect {
+            if offset != e {
+                return Err(t(format!(
+                    "starts at byte {offset}, the previous tile ends at {e} (tiles lie back to back in tile order)"
+                )));
+            }
+        }
+        let end = offset
+            .checked_add(length)
+            .filter(|&e| offset >= global_start && e <= index_offset)
+            .ok_or_else(|| {
+                t(format!(
+                    "bytes {offset}..+{length} are outside the tiles' part of the file"
+                ))
+            })?;
+        if length < 12 {
+            return Err(t(format!("a block of {length} bytes is too short")));
+        }
+        if length > limits.max_section_bytes {
+            return Err(Error::limit(format!(
+                "tile {k} of {length} bytes is over the limit of {}",
+                limits.max_section_bytes
+            )));
+        }
+        let range = check_entry(header, grid, k, kind, flags, valid, lo, hi, max_error)?;
+        first.get_or_insert(offset);
+        expect = Some(end);
+        tiles.push(TileEntry {
+            offset,
+            length,
+            crc,
+            kind,
+            valid,
+            range,
+            max_error,
+            chunks: Vec::new(),
+        });
+    }
+    r.finish()?;
+    if expect != Some(index_offset) {
+        return Err(Error::corrupt(
+            "tile index: the last tile does not end where the index starts",
+        ));
+    }
+    let global_end = first.expect("a grid has at least one tile");
+    let (global, _) = super::read_directory_to(
+        inner,
+        global_start,
+        global_end,
+        true,
+        limits,
+        names,
+        "global sections",
+    )?;
+    Ok((tiles, global))
+}
+
+/// Version 4's index (right after the header, `index_len` bytes) and global directory
+/// (right after the index); the blocks follow back to back and the last ends the file.
+fn read_cloud_index(
+    inner: &mut Source,
+    header: &Header,
+    grid: &TileGrid,
+    index_at: u64,
+    index_len: u64,
+    limits: &Limits,
+    names: KindNames,
+) -> Result<(Vec<TileEntry>, Vec<SectionEntry>)> {
+    let file_len = inner.len();
+    let n = grid.count();
+    let least = 8 + n.saturating_mul(CLOUD_ENTRY_LEN as u64 + 8);
+    let most = 8 + n.saturating_mul((CLOUD_ENTRY_LEN + 8 * MAX_CHUNKS) as u64);
+    if index_len < least || index_len > most {
+        return Err(Error::corrupt(format!(
+            "header: an index of {index_len} bytes cannot hold {n} tiles ({least}..={most} bytes)"
+        )));
+    }
+    if index_len > limits.max_section_bytes {
+        return Err(Error::limit(format!(
+            "tile index of {index_len} bytes is over the limit of {}",
+            limits.max_section_bytes
+        )));
+    }
+    if index_at + index_len > file_len {
+        return Err(Error::corrupt("file is truncated in the tile index"));
+    }
+    let ibuf = inner.read_at(index_at..index_at + index_len)?;
+    let (ib, crc_bytes) = ibuf.split_at(ibuf.len() - 4);
+    if !checksum_ok(crc32fast::hash(ib), crc_bytes) {
+        return Err(Error::corrupt("tile index checksum mismatch"));
+    }
+    let mut r = ByteReader::new(ib, "tile index");
+    let count = r.u32("tile count")? as u64;
+    if count != n {
+        return Err(r.corrupt(format!("{count} tiles listed, the grid has {n}")));
+    }
+    let mut tiles = Vec::with_capacity(n as usize);
+    for k in 0..n as usize {
+        let t = |m: String| {
+            let w = grid.rect(k);
+            Error::corrupt(format!("tile index: tile {k} (at {},{}): {m}", w.x, w.y))
+        };
+        let kind = SectionKind::from_code(r.u16("method")?);
+        let flags = r.u16("flags")?;
+        let c = r.u8("chunk count")? as usize;
+        let reserved = r.take(3, "reserved")?;
+        let valid = r.u64("valid count")?;
+        let lo = r.f64("minimum")?;
+        let hi = r.f64("maximum")?;
+        let max_error = r.f64("max error")?;
+        if reserved != [0, 0, 0] {
+            return Err(t("reserved bytes are not 0".into()));
+        }
+        if !(1..=MAX_CHUNKS).contains(&c) {
+            return Err(t(format!("{c} chunks (1 ..= {MAX_CHUNKS})")));
+        }
+        let mut chunks = Vec::with_capacity(c);
+        let mut prev = 0u32;
+        for _ in 0..c {
+            let end = r.u32("chunk end")?;
+            let crc = r.u32("chunk checksum")?;
+            if end < prev {
+                return Err(t(format!("chunk ends {prev} then {end}: not in order")));
+            }
+            chunks.push((end, crc));
+            prev = end;
+        }
+        let length = prev as u64;
+        if chunks[0].0 < 12 {
+            return Err(t(format!("a first chunk of {} bytes is too short", chunks[0].0)));
+        }
+        if length > limits.max_section_bytes {
+            return Err(Error::limit(format!(
+                "tile {k} of {length} bytes is over the limit of {}",
+                limits.max_section_bytes
+            )));
+        }
+        let range = check_entry(header, grid, k, kind, flags, valid, lo, hi, max_error)?;
+        tiles.push(TileEntry {
+            offset: 0,
+            length,
+            crc: 0,
+            kind,
+            valid,
+            range,
+            max_error,
+            chunks,
+        });
+    }
+    r.finish()?;
+    let (global, t0) = super::read_directory_to(
+        inner,
+        index_at + index_len,
+        file_len,
+        false,
+        limits,
+        names,
+        "global sections",
+    )?;
+    let mut at = t0;
+    for e in &mut tiles {
+        e.offset = at;
+        at = at.saturating_add(e.length);
+    }
+    if at != file_len {
+        return Err(if at > file_len {
+            Error::corrupt(format!(
+                "file is truncated: its tiles end at byte {at}, the file at {file_len}"
+            ))
+        } else {
+            Error::corrupt(format!("{} unexpected bytes after the last tile", file_len - at))
+        });
+    }
+    Ok((tiles, global))
+}
+
+/// Reads a tiled file (version 2 or 4): the header and the index on opening, then any
+/// tile on demand.
 pub struct TiledReader {
     inner: Source,
     header: Header,
@@ -425,26 +814,23 @@ pub struct TiledReader {
 }
 
 impl TiledReader {
-    /// Open a version-2 file and check its framing: header checksum and fields, the index's
-    /// checksum, that the tile blocks lie back to back between the global sections and the
-    /// index, each entry's fields, and that the index ends the file.
+    /// Open a version-2 or version-4 file and check its framing: header checksum and
+    /// fields, the index's checksum, that the tile blocks lie back to back (version 2:
+    /// between the global sections and the index, which ends the file; version 4: after
+    /// the index and the global sections, the last ending the file), each entry's fields.
+    /// A version-4 file's header, index and global sections are usually inside the bytes
+    /// the source read on opening ([`crate::source::HEAD_BYTES`]): no further read.
     pub fn new(mut inner: Source, limits: Limits, names: KindNames) -> Result<Self> {
-        let file_len = inner
-            .seek(SeekFrom::End(0))
-            .map_err(|e| Error::io("measuring the file", e))?;
-        inner
-            .seek(SeekFrom::Start(0))
-            .map_err(|e| Error::io("seeking", e))?;
+        let file_len = inner.len();
         if file_len < 16 {
             return Err(Error::corrupt("file is truncated in the file start"));
         }
-        let mut fixed = [0u8; 16];
-        read_exact(&mut inner, &mut fixed, "file start")?;
+        let fixed = inner.read_at(0..16)?;
         if fixed[..8] != MAGIC {
             return Err(Error::corrupt("not a vtz file (bad magic)"));
         }
         let version = u16::from_le_bytes([fixed[8], fixed[9]]);
-        if version != VERSION_TILED {
+        if version != VERSION_TILED && version != VERSION_CLOUD {
             return Err(Error::unsupported(format!("vtz format version {version}")));
         }
         let req = u16::from_le_bytes([fixed[10], fixed[11]]);
@@ -463,8 +849,7 @@ impl TiledReader {
         if 16 + hlen as u64 + 4 > file_len {
             return Err(Error::corrupt("file is truncated in the header"));
         }
-        let mut hbuf = vec![0u8; hlen as usize + 4];
-        read_exact(&mut inner, &mut hbuf, "header")?;
+        let hbuf = inner.read_at(16..16 + hlen as u64 + 4)?;
         let (body, crc_bytes) = hbuf.split_at(hlen as usize);
         let mut h = crc32fast::Hasher::new();
         h.update(&fixed);
@@ -472,7 +857,8 @@ impl TiledReader {
         if !checksum_ok(h.finalize(), crc_bytes) {
             return Err(Error::corrupt("header checksum mismatch"));
         }
-        if body.len() < TILE_FIELDS_LEN {
+        let fields = if version == VERSION_CLOUD { CLOUD_FIELDS_LEN } else { TILE_FIELDS_LEN };
+        if body.len() < fields {
             return Err(Error::corrupt("header: too short for the tile fields"));
         }
         let mut r = ByteReader::new(body, "header");
@@ -487,158 +873,21 @@ impl TiledReader {
             tile_h: r.u32("tile height")?,
             margin: r.u32("margin")?,
         };
-        let index_offset = r.u64("index offset")?;
-        let index_len = r.u64("index length")?;
-        r.finish()?;
-        grid.check()?;
-        let n = grid.count();
-        let global_start = 16 + hlen as u64 + 4;
-        let want = 8 + n.saturating_mul(INDEX_ENTRY_LEN as u64);
-        if index_len != want {
-            return Err(Error::corrupt(format!(
-                "header: the index of {n} tiles needs {want} bytes, the header says {index_len}"
-            )));
-        }
-        if index_len > limits.max_section_bytes {
-            return Err(Error::limit(format!(
-                "tile index of {index_len} bytes is over the limit of {}",
-                limits.max_section_bytes
-            )));
-        }
-        match index_offset.checked_add(index_len) {
-            Some(end) if index_offset >= global_start && end <= file_len => {
-                if end != file_len {
-                    return Err(Error::corrupt(format!(
-                        "{} unexpected bytes after the tile index",
-                        file_len - end
-                    )));
-                }
-            }
-            _ => {
-                return Err(Error::corrupt(format!(
-                    "file is truncated (or the header is corrupt): the tile index should be at bytes {index_offset}..{} of a {file_len}-byte file",
-                    index_offset.saturating_add(index_len)
-                )));
-            }
-        }
-        inner
-            .seek(SeekFrom::Start(index_offset))
-            .map_err(|e| Error::io("seeking", e))?;
-        let mut ibuf = vec![0u8; index_len as usize];
-        read_exact(&mut inner, &mut ibuf, "tile index")?;
-        let (ib, crc_bytes) = ibuf.split_at(ibuf.len() - 4);
-        if !checksum_ok(crc32fast::hash(ib), crc_bytes) {
-            return Err(Error::corrupt("tile index checksum mismatch"));
-        }
-        let mut r = ByteReader::new(ib, "tile index");
-        let count = r.u32("tile count")? as u64;
-        if count != n {
-            return Err(r.corrupt(format!("{count} tiles listed, the grid has {n}")));
-        }
-        let mut tiles = Vec::with_capacity(n as usize);
-        let mut first = None;
-        let mut expect: Option<u64> = None;
-        for k in 0..n as usize {
-            let t = |m: String| {
-                let w = grid.rect(k);
-                Error::corrupt(format!("tile index: tile {k} (at {},{}): {m}", w.x, w.y))
-            };
-            let offset = r.u64("offset")?;
-            let length = r.u64("length")?;
-            let crc = r.u32("checksum")?;
-            let kind = SectionKind::from_code(r.u16("method")?);
-            let flags = r.u16("flags")?;
-            let valid = r.u64("valid count")?;
-            let lo = r.f64("minimum")?;
-            let hi = r.f64("maximum")?;
-            let max_error = r.f64("max error")?;
-            if let Some(e) = expect {
-                if offset != e {
-                    return Err(t(format!(
-                        "starts at byte {offset}, the previous tile ends at {e} (tiles lie back to back in tile order)"
-                    )));
-                }
-            }
-            let end = offset
-                .checked_add(length)
-                .filter(|&e| offset >= global_start && e <= index_offset)
-                .ok_or_else(|| {
-                    t(format!(
-                        "bytes {offset}..+{length} are outside the tiles' part of the file"
-                    ))
-                })?;
-            if length < 12 {
-                return Err(t(format!("a block of {length} bytes is too short")));
-            }
-            if length > limits.max_section_bytes {
-                return Err(Error::limit(format!(
-                    "tile {k} of {length} bytes is over the limit of {}",
-                    limits.max_section_bytes
-                )));
-            }
-            if kind.code() == 0 || !kind.may_be_primary() {
-                return Err(t(format!("method type {} is not a representation", kind.0)));
-            }
-            if flags & !TF_RANGE != 0 {
-                return Err(t(format!("unknown flags 0x{:04x}", flags & !TF_RANGE)));
-            }
-            let w = grid.ext(k);
-            if valid > (w.width * w.height) as u64 {
-                return Err(t(format!(
-                    "{valid} valid samples in a {}x{} tile",
-                    w.width, w.height
-                )));
-            }
-            let range = if flags & TF_RANGE != 0 {
-                if !(lo.is_finite() && hi.is_finite() && lo <= hi) || valid == 0 {
-                    return Err(t(format!("range {lo}..{hi} is not valid")));
-                }
-                // The range is of sample values: each end a value of the sample type.
-                for (what, v) in [("minimum", lo), ("maximum", hi)] {
-                    header
-                        .sample_type
-                        .check_holds(what, v, header.mapping)
-                        .map_err(t)?;
-                }
-                Some((lo, hi))
-            } else {
-                if valid != 0 || lo.to_bits() != 0 || hi.to_bits() != 0 {
-                    return Err(t("no range flag, but a valid count or range".into()));
-                }
-                None
-            };
-            if !(max_error.is_finite() && max_error >= 0.0) {
-                return Err(t(format!("max error {max_error} is not valid")));
-            }
-            first.get_or_insert(offset);
-            expect = Some(end);
-            tiles.push(TileEntry {
-                offset,
-                length,
-                crc,
-                kind,
-                valid,
-                range,
-                max_error,
-            });
-        }
-        r.finish()?;
-        if expect != Some(index_offset) {
-            return Err(Error::corrupt(
-                "tile index: the last tile does not end where the index starts",
-            ));
-        }
-        let global_end = first.expect("a grid has at least one tile");
-        let global = read_directory(
-            &mut inner,
-            global_start,
-            global_end,
-            &limits,
-            names,
-            "global sections",
-        )?;
-        // Only metadata and GDAL metadata belong there (FORMAT.md): a mask, flat regions
-        // or a representation in the global directory would apply to no tile.
+        let after_header = 16 + hlen as u64 + 4;
+        let (tiles, global) = if version == VERSION_CLOUD {
+            let index_len = r.u32("index length")? as u64;
+            r.finish()?;
+            grid.check()?;
+            read_cloud_index(&mut inner, &header, &grid, after_header, index_len, &limits, names)?
+        } else {
+            let index_offset = r.u64("index offset")?;
+            let index_len = r.u64("index length")?;
+            r.finish()?;
+            grid.check()?;
+            read_index_v2(&mut inner, &header, &grid, after_header, index_offset, index_len, &limits, names)?
+        };
+        // Only metadata and GDAL metadata belong in the global directory (FORMAT.md): a
+        // mask, flat regions or a representation there would apply to no tile.
         if global
             .iter()
             .any(|e| !matches!(e.kind, SectionKind::METADATA | SectionKind::GDAL_METADATA))
@@ -698,29 +947,59 @@ impl TiledReader {
         Ok(Some(buf))
     }
 
-    fn read_at(&mut self, offset: u64, length: u64, what: &str) -> Result<Vec<u8>> {
-        self.inner
-            .seek(SeekFrom::Start(offset))
-            .map_err(|e| Error::io("seeking", e))?;
+    fn read_at(&mut self, offset: u64, length: u64, _what: &str) -> Result<Vec<u8>> {
         // Offsets and lengths were checked against the file's length when opening.
-        let mut buf = vec![0u8; length as usize];
-        read_exact(&mut self.inner, &mut buf, what)?;
-        Ok(buf)
+        self.inner.read_at(offset..offset + length)
     }
 
-    /// Tile `k`'s block, its checksum checked.
+    /// Tile `k`'s block, its checksums checked.
     pub fn tile_block(&mut self, k: usize) -> Result<Vec<u8>> {
-        let e = self
-            .tiles
-            .get(k)
+        self.tile_blocks(&[k], 0)?
+            .pop()
             .ok_or_else(|| Error::invalid(format!("no tile {k}")))?
-            .clone();
-        let name = tile_name(&self.grid, k);
-        let buf = self.read_at(e.offset, e.length, &name)?;
-        if !checksum_ok(crc32fast::hash(&buf), &e.crc.to_le_bytes()) {
-            return Err(Error::corrupt(format!("{name}: checksum mismatch")));
+    }
+
+    /// The blocks of tiles `ks` as an overview-`overview` decode reads them (0: a full
+    /// decode; in version 4 an overview reads a prefix of each block, its first chunks), in
+    /// one call to the source, which coalesces adjacent blocks and may fetch them at once.
+    /// The outer error is the source's (nothing was read); each tile's own result says
+    /// whether its checksums hold, so a decode may skip a corrupt tile.
+    pub fn tile_blocks(&mut self, ks: &[usize], overview: u32) -> Result<Vec<Result<Vec<u8>>>> {
+        let mut ranges = Vec::with_capacity(ks.len());
+        for &k in ks {
+            let e = self
+                .tiles
+                .get(k)
+                .ok_or_else(|| Error::invalid(format!("no tile {k}")))?;
+            ranges.push(e.offset..e.offset + e.prefix(overview));
         }
-        Ok(buf)
+        let got = self.inner.read_ranges(&ranges)?;
+        Ok(ks
+            .iter()
+            .zip(got)
+            .map(|(&k, buf)| {
+                let e = &self.tiles[k];
+                let name = tile_name(&self.grid, k);
+                if e.chunks.is_empty() {
+                    if !checksum_ok(crc32fast::hash(&buf), &e.crc.to_le_bytes()) {
+                        return Err(Error::corrupt(format!("{name}: checksum mismatch")));
+                    }
+                    return Ok(buf);
+                }
+                let mut from = 0usize;
+                for (j, &(end, crc)) in e.chunks.iter().enumerate() {
+                    let end = end as usize;
+                    if end > buf.len() {
+                        break;
+                    }
+                    if !checksum_ok(crc32fast::hash(&buf[from..end]), &crc.to_le_bytes()) {
+                        return Err(Error::corrupt(format!("{name}: chunk {j} checksum mismatch")));
+                    }
+                    from = end;
+                }
+                Ok(buf)
+            })
+            .collect())
     }
 
     /// What opening a tile needs, without the reader (shareable across threads).
@@ -759,7 +1038,7 @@ impl TileOpener<'_> {
             ..self.header.clone()
         };
         let name = tile_name(&self.grid, k);
-        let rd = ContainerReader::tile(Cursor::new(block), h, self.limits, self.names, &name)?;
+        let rd = ContainerReader::tile(Cursor::new(block), h, e.length, self.limits, self.names, &name)?;
         if rd
             .entries()
             .get(rd.header().primary as usize)

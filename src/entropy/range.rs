@@ -286,6 +286,12 @@ impl<'a> Decoder<'a> {
         v
     }
 
+    /// Bytes of the input read so far (the flush bytes included): a decode that stops here
+    /// needs exactly this prefix of the stream.
+    pub fn position(&self) -> usize {
+        self.pos
+    }
+
     /// Bytes read beyond the end of the input so far (0 on a well-formed stream).
     pub fn bytes_past_end(&self) -> usize {
         self.pos.saturating_sub(self.buf.len())

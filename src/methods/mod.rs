@@ -223,6 +223,13 @@ pub(crate) trait Representation: Sync {
             j,
         ))
     }
+    /// For each overview K = 1, 2, … (element K − 1), the bytes of the payload that
+    /// [`Representation::decode_decimated`] with `j` = K reads, when that is less than the
+    /// whole (coarser overviews than the last element read what it reads); empty when every
+    /// overview reads the whole payload. Version 4 cuts its tile blocks there.
+    fn overview_prefixes(&self, _job: &DecodeJob) -> Result<Vec<usize>> {
+        Ok(Vec::new())
+    }
     /// Whether the payload is progressive (a prefix of `--sites N` / `--level K` decodes).
     fn progressive(&self) -> bool {
         false

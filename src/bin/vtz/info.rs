@@ -99,7 +99,7 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
             "bits_per_sample": bps, "max_error": max_error.as_ref().ok(),
             "lossless": max_error.as_ref().ok().map(|&m| m == 0.0),
             "georef": georef, "sections": sections,
-            "version": if tiles.is_some() { 2 } else { 1 }, "tiles": tiles,
+            "version": info.version, "tiles": tiles,
         });
         // One object per method with a section (grid has no statistics); the sibson
         // statistics keep their first key, "stats".
@@ -218,12 +218,13 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
         }
         let worst = t.tiles.iter().map(|e| e.max_error).fold(0.0, f64::max);
         outln!(
-            "tiles         {} x {} = {} tiles of {} x {} (version 2), blended over {} samples, max error {}",
+            "tiles         {} x {} = {} tiles of {} x {} (version {}), blended over {} samples, max error {}",
             t.cols,
             t.rows,
             t.tiles.len(),
             t.tile_width,
             t.tile_height,
+            info.version,
             2 * t.margin,
             num(worst)
         );

@@ -105,6 +105,9 @@ pub trait BinCoder {
     fn bin(&mut self, c: &Ctx, bin: i64) -> Result<i64>;
     /// Whether this is the encoder (which knows the source values).
     const ENCODES: bool;
+    /// A level (or the anchors) is complete: a decoder notes how many bytes of its stream
+    /// it has read ([`BinDecoder::marks`]).
+    fn level_done(&mut self) {}
 }
 
 /// The encoding side.
@@ -144,10 +147,16 @@ pub struct BinDecoder<'a> {
     pub m: Models,
     pub dec: Decoder<'a>,
     pub max_bin: u64,
+    /// Bytes of the stream read when the anchors and each level were complete, coarse to
+    /// fine (what a decode that stops there needs: the progressive tiles of version 4).
+    pub marks: Vec<usize>,
 }
 
 impl BinCoder for BinDecoder<'_> {
     const ENCODES: bool = false;
+    fn level_done(&mut self) {
+        self.marks.push(self.dec.position());
+    }
     #[inline]
     fn bin(&mut self, c: &Ctx, _bin: i64) -> Result<i64> {
         let (zi, si) = Models::index(c);

@@ -199,6 +199,7 @@ pub fn run<C: BinCoder>(
             lvl_of[i] = (LEVELS - 1) as u8;
         }
     }
+    coder.level_done();
     // 2. The levels, coarse to fine.
     let mut next_weights = 0;
     for l in (1..=cfg.levels).rev() {
@@ -311,6 +312,7 @@ pub fn run<C: BinCoder>(
                 }
             }
         }
+        coder.level_done();
     }
     let _ = FIXED;
     Ok(st)

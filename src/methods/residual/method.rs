@@ -47,6 +47,10 @@ impl Representation for Residual {
         let all = Window::full(job.header.width as usize, job.header.height as usize);
         decode(job.payload, job.header, job.mask, job.flat, all, j)
     }
+    /// Where each level ends: the interpolation codings code coarse levels first.
+    fn overview_prefixes(&self, job: &DecodeJob) -> Result<Vec<usize>> {
+        super::overview_prefixes(job.payload, job.header, job.mask, job.flat)
+    }
     /// The window alone: the fast coding decodes only the bands its rows need.
     fn decode(&self, job: &DecodeJob) -> Result<Vec<f64>> {
         decode(job.payload, job.header, job.mask, job.flat, job.window, 0)

@@ -569,6 +569,60 @@ pub(crate) fn decode(
     win: Window,
     stop: u32,
 ) -> Result<Vec<f64>> {
+    decode_marked(payload, header, mask, flat, win, stop, None)
+}
+
+/// For an overview decode (`stop` = K ≥ 1), the bytes of the payload it reads: element K − 1
+/// for K = 1 ..= L (coarser overviews read what K = L reads, the anchors'), empty for the
+/// weighted scan (it has no coarse levels: every overview reads it whole). The interpolation
+/// codings' range-coded stream is decoded through level 2 to find where each level ends
+/// (the coder reads one byte per renormalisation, so a decode that stops after a level
+/// reads exactly the bytes it had read there); the fast coding's streams are located from
+/// its stream directory alone. What version 4's progressive tiles are cut at
+/// (spec/FORMAT.md, "Version 4").
+pub(crate) fn overview_prefixes(
+    payload: &[u8],
+    header: &Header,
+    mask: Option<&[bool]>,
+    flat: Option<&Flat>,
+) -> Result<Vec<usize>> {
+    let (levels, weighted) = {
+        let mut rd = ByteReader::new(payload, "residual section");
+        let h = read_head(&mut rd)?;
+        match h.cfg {
+            Predictor::Interp(c) => (c.levels, false),
+            Predictor::Fast(f) => (f.levels, false),
+            Predictor::Weighted => (0, true),
+        }
+    };
+    if weighted || levels == 0 {
+        return Ok(Vec::new());
+    }
+    let all = Window::full(header.width as usize, header.height as usize);
+    let mut marks = Vec::new();
+    decode_marked(payload, header, mask, flat, all, 1, Some(&mut marks))?;
+    // marks: the anchors', then level L's, L − 1's, …: overview K reads through level K + 1
+    // (level L + 1 = the anchors).
+    let at = |l: u32| marks.get((levels + 1 - l) as usize).copied();
+    (1..=levels)
+        .map(|k| {
+            at(k + 1)
+                .map(|e| e.min(payload.len()))
+                .ok_or_else(|| Error::corrupt("residual section: a level's end is missing"))
+        })
+        .collect()
+}
+
+#[allow(clippy::too_many_arguments)]
+fn decode_marked(
+    payload: &[u8],
+    header: &Header,
+    mask: Option<&[bool]>,
+    flat: Option<&Flat>,
+    win: Window,
+    stop: u32,
+    mut marks: Option<&mut Vec<usize>>,
+) -> Result<Vec<f64>> {
     let mut rd = ByteReader::new(payload, "residual section");
     let Head {
         cfg,
@@ -672,15 +726,17 @@ pub(crate) fn decode(
             .chunks_exact(fast::NW)
             .map(|c| c.try_into().expect("NW weights"))
             .collect();
-        fast::decode(&mut rd, &p, f.levels, f.tighten, &wts, max_bin, win.y..win.y + win.height, stop)?
+        fast::decode(&mut rd, &p, f.levels, f.tighten, &wts, max_bin, win.y..win.y + win.height, stop, marks.as_deref_mut())?
     } else {
     // Codings 0 and 1 are one range-coded stream: every sample is decoded, whatever the
     // window.
+    let stream_at = rd.position();
     let stream = rd.take(rd.remaining(), "bins")?;
     let mut c = BinDecoder {
         m: Models::new(),
         dec: Decoder::new(stream)?,
         max_bin,
+        marks: Vec::new(),
     };
     let st = match cfg {
         Predictor::Fast(_) => unreachable!("decoded above"),
@@ -700,8 +756,14 @@ pub(crate) fn decode(
         }
     };
     if stop == 0 || matches!(cfg, Predictor::Weighted) {
-        // A decode that stopped after a coarse level has not reached the stream's end.
         c.dec.finish()?;
+    } else {
+        // A decode that stopped after a coarse level has not reached the stream's end, but
+        // read nothing past the end of what it was given (a version-4 tile's prefix).
+        c.dec.check_in_bounds()?;
+    }
+    if let Some(m) = marks.as_deref_mut() {
+        m.extend(c.marks.iter().map(|&e| stream_at + e));
     }
     st.rec
     };

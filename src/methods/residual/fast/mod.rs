@@ -241,6 +241,7 @@ pub fn decode(
     max_bin: u64,
     rows: Range<usize>,
     stop: u32,
+    marks: Option<&mut Vec<usize>>,
 ) -> Result<Vec<i64>> {
     let (w, h) = (p.width, p.height);
     let band_log2 = rd.u8("band size")?;
@@ -288,13 +289,45 @@ pub fn decode(
             lens.push((a, r));
         }
     }
-    let mut slices = Vec::with_capacity(lens.len());
-    for (a, r) in lens {
-        let a = rd.take(usize::try_from(a).unwrap_or(usize::MAX), "entropy stream")?;
-        let r = rd.take(usize::try_from(r).unwrap_or(usize::MAX), "raw bits")?;
-        slices.push((a, r));
+    // Where each level's streams end (the anchors' first): a decode that stops after a
+    // level needs the payload up to there (the progressive tiles of version 4), and with
+    // `stop` above 0 the payload may be such a prefix: the finer passes' streams are then
+    // neither read nor required.
+    let mut end = rd.position() as u64;
+    let mut level_end: Vec<(u32, u64)> = Vec::new();
+    let mut k = 0;
+    for (pass, b) in passes.iter().zip(&bands) {
+        for &(a, r) in &lens[k..k + b.len()] {
+            end = end.saturating_add(a).saturating_add(r);
+        }
+        k += b.len();
+        let lvl = if pass.kind == Kind::Anchor { levels + 1 } else { pass.level() };
+        match level_end.last_mut() {
+            Some((l, e)) if *l == lvl => *e = end,
+            _ => level_end.push((lvl, end)),
+        }
     }
-    rd.finish()?;
+    if let Some(m) = marks {
+        m.extend(level_end.iter().map(|&(_, e)| usize::try_from(e).unwrap_or(usize::MAX)));
+    }
+    let wanted = |pass: &Pass| pass.kind == Kind::Anchor || stop == 0 || pass.s >= 1 << stop;
+    let mut slices = Vec::with_capacity(lens.len());
+    let mut k = 0;
+    for (pass, b) in passes.iter().zip(&bands) {
+        for &(a, r) in &lens[k..k + b.len()] {
+            if !wanted(pass) {
+                slices.push((&[][..], &[][..]));
+                continue;
+            }
+            let a = rd.take(usize::try_from(a).unwrap_or(usize::MAX), "entropy stream")?;
+            let r = rd.take(usize::try_from(r).unwrap_or(usize::MAX), "raw bits")?;
+            slices.push((a, r));
+        }
+        k += b.len();
+    }
+    if stop == 0 {
+        rd.finish()?;
+    }
     let n = w * h;
     let mut rec = vec![0i64; n];
     let mut mag = vec![0u8; n];
@@ -414,13 +447,13 @@ mod tests {
             let max_bin = (p.hi - p.lo) as u64 / super::super::narrowest_bin(bin, 4, tighten) as u64 + 1;
             for threads in [1, 2, 3] {
                 let back = crate::methods::with_threads(threads, || {
-                    decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, &wts, max_bin, 0..h, 0)
+                    decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, &wts, max_bin, 0..h, 0, None)
                 })
                 .unwrap();
                 assert_eq!(back, rec, "bin {bin}, {threads} threads");
             }
             for cut in (0..bytes.len()).step_by(7) {
-                let r = decode(&mut ByteReader::new(&bytes[..cut], "t"), &p, 4, tighten, &wts, max_bin, 0..h, 0);
+                let r = decode(&mut ByteReader::new(&bytes[..cut], "t"), &p, 4, tighten, &wts, max_bin, 0..h, 0, None);
                 assert!(r.is_err(), "bin {bin}: a prefix of {cut} bytes decoded");
             }
             // One flipped bit in the streams decodes to an error or other samples, never a
@@ -428,7 +461,7 @@ mod tests {
             for k in (bytes.len() / 2..bytes.len()).step_by(13) {
                 let mut bad = bytes.clone();
                 bad[k] ^= 0x10;
-                let _ = decode(&mut ByteReader::new(&bad, "t"), &p, 4, tighten, &wts, max_bin, 0..h, 0);
+                let _ = decode(&mut ByteReader::new(&bad, "t"), &p, 4, tighten, &wts, max_bin, 0..h, 0, None);
             }
         }
     }
@@ -485,7 +518,7 @@ mod tests {
                 }
             }
             let max_bin = (p.hi - p.lo) as u64 / super::super::narrowest_bin(bin, 4, tighten) as u64 + 1;
-            let dec = |rows: Range<usize>| decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, &wts, max_bin, rows, 0);
+            let dec = |rows: Range<usize>| decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, &wts, max_bin, rows, 0, None);
             assert_eq!(dec(0..h).unwrap(), rec, "{what}: the full decode");
             // Every single row, the first and last few, and random ranges.
             let mut windows: Vec<Range<usize>> = (0..h).map(|y| y..y + 1).collect();
