@@ -17,9 +17,12 @@ use std::sync::{Arc, Mutex};
 /// GDAL reads first from a Cloud Optimized GeoTIFF.
 pub const HEAD_BYTES: u64 = 64 * 1024;
 
-/// Ranges closer than this are fetched as one (the bytes between are read and dropped):
-/// a request costs a round trip, a few KB cost less.
-pub const COALESCE_GAP: u64 = 16 * 1024;
+/// Ranges closer than this are fetched as one (the bytes between are read and dropped).
+/// Small on purpose: the blocks of a window's tiles in one row of tiles lie back to back
+/// (gap 0) and merge whatever the gap, while an overview reads a prefix of each block, and
+/// merging across the rest of a block (tens of KB) would fetch the whole file; the ranges
+/// left apart are fetched concurrently.
+pub const COALESCE_GAP: u64 = 4 * 1024;
 
 /// A source of bytes that reads ranges: a local file, memory, an object on a server.
 ///
