@@ -236,7 +236,7 @@ fn tiled_encode_decode_info_and_a_corrupt_tile() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let info = json(&vtz(["info", &out, "--json"]));
-    assert_eq!(info["version"], 2);
+    assert_eq!(info["version"], 4);
     let t = &info["tiles"];
     let n = t["cols"].as_u64().unwrap() * t["rows"].as_u64().unwrap();
     assert!(n >= 9, "tiles of at most 128 over a raster of ~400²");

@@ -33,6 +33,10 @@ pub const COALESCE_GAP: u64 = 4 * 1024;
 pub trait RangeSource: Send + Sync {
     /// The object's length in bytes.
     fn len(&self) -> Result<u64>;
+    /// Whether the object is empty.
+    fn is_empty(&self) -> Result<bool> {
+        Ok(self.len()? == 0)
+    }
     /// The bytes of each range, in the order asked. Ranges may overlap or be empty.
     ///
     /// # Errors
@@ -244,7 +248,10 @@ impl Source {
     pub fn open(src: Arc<dyn RangeSource>) -> Result<Source> {
         let len = src.len()?;
         let n = len.min(HEAD_BYTES);
-        let head = src.read_ranges(&[0..n])?.pop().unwrap_or_default();
+        let head = src
+            .read_ranges(std::slice::from_ref(&(0..n)))?
+            .pop()
+            .unwrap_or_default();
         if head.len() as u64 != n {
             return Err(Error::corrupt(format!(
                 "{}: a read of {n} bytes gave {}",
