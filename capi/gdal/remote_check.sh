@@ -8,8 +8,12 @@
 #   capi/gdal/remote_check.sh VTZ_CLI PLUGIN_DIR
 #
 # Needs nginx (Debian's nginx-light; .ci/run installs it), gdal-bin and python3-gdal. The
-# assertions hold for any container version (see "Version 4" in capi/README.md for the ones
-# to tighten).
+# assertions hold for any container version. For version 4 (header and tile index in the
+# first 64 KB, a tile's overview K a prefix of its block) and a library that reads a band's
+# tile blocks in one read_ranges call, tighten them in req.py: check_open to the HEAD and
+# one 64 KB GET (GDAL_INGESTED_BYTES_AT_OPEN=65536) or two (GDAL's first 16 KB chunk, then
+# the rest), no index; check_window to at most 3 requests and 1.5x the touched tiles'
+# bytes; the overview reads (each_once) to the touched tiles' prefixes for their level.
 set -euo pipefail
 
 if [ $# -ne 2 ]; then
