@@ -8,6 +8,14 @@
  * What GDAL sees:
  * - Identify: the 8-byte magic `\x89VTZ\r\n\x1a\n`. Format versions 1 (untiled raster)
  *   and 2 (tiled raster) open; version 3 (a point set) is refused with a clear error.
+ * - Every path, local or /vsi (/vsicurl/, /vsis3/, an archive, memory), is read by byte
+ *   ranges through GDAL's VSI layer (vtz_open_reader with VSIReadRanges): opening reads
+ *   the first 64 KB (the header; a version-4 file's tile index) and a version-2 file's
+ *   tile index, a read the blocks of the tiles it touches. Identify needs only GDAL's
+ *   first bytes. On a network file system (VSIHasOptimizedReadMultiRange) tile blocks are
+ *   fetched exactly with VSIFReadMultiRangeL and kept (VTZ_REMOTE_CACHE_MB, default 64),
+ *   and a full-resolution window that is not a full-width swath is decoded exactly (only
+ *   the tiles it touches; block-aligned reads also need the neighbours' margins).
  * - One read-only band of the file's values (the smallest type that holds them; or its
  *   integer codes with the value mapping as the band's offset and scale: VtzInfo's
  *   value_type, vtz_read_band), with nodata, geotransform, CRS,
@@ -52,7 +60,10 @@
 #include <cmath>
 #include <limits>
 #include <cstring>
+#include <deque>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <new>
 #include <string>
 #include <vector>
@@ -140,6 +151,195 @@ bool IsCopiedDomain(const char *pszDomain)
              STARTS_WITH_CI(pszDomain, "json:"));
 }
 
+/// What the VTZ reader callbacks hold: GDAL's handle of the file, behind a lock (a
+/// VSILFILE is not thread-safe; vtz calls read_ranges one call at a time per handle, from
+/// the decode's pool threads, and the lock keeps that true whatever the caller does).
+struct VSIReader
+{
+    VSILFILE *fp = nullptr;
+    std::mutex oMutex{};
+    // The file system serves VSIFReadMultiRangeL with exact range requests (/vsicurl/,
+    // /vsis3/, ...: VSIHasOptimizedReadMultiRange).
+    bool bMultiRange = false;
+    // While vtz_open_reader runs (the header and the tile index).
+    bool bOpening = true;
+    // Network files: the ranges fetched last (tile blocks), by offset, up to
+    // nCacheMax bytes, the oldest dropped first. A tile's decode reads its neighbours'
+    // blocks too (they blend across the margins), so reading a raster block by block
+    // (gdalinfo -stats, a reduced read) reads each block up to 9 times: from here
+    // after the first.
+    std::map<vsi_l_offset, std::vector<GByte>> oCache{};
+    std::deque<vsi_l_offset> oCacheOrder{};
+    size_t nCached = 0;
+    size_t nCacheMax = 0;
+
+    /// The cached bytes holding [nOffset, nOffset + nSize), or nullptr.
+    const GByte *Cached(vsi_l_offset nOffset, size_t nSize) const
+    {
+        auto it = oCache.upper_bound(nOffset);
+        if (it == oCache.begin())
+            return nullptr;
+        --it;
+        if (it->first + it->second.size() < nOffset + nSize)
+            return nullptr;
+        return it->second.data() + (nOffset - it->first);
+    }
+
+    void Keep(vsi_l_offset nOffset, const GByte *pabyData, size_t nSize)
+    {
+        if (nSize > nCacheMax / 4 || Cached(nOffset, nSize) != nullptr)
+            return;
+        auto it = oCache.find(nOffset);
+        if (it != oCache.end())
+        {
+            nCached -= it->second.size();
+            oCache.erase(it);
+        }
+        oCache[nOffset].assign(pabyData, pabyData + nSize);
+        oCacheOrder.push_back(nOffset);
+        nCached += nSize;
+        while (nCached > nCacheMax && !oCacheOrder.empty())
+        {
+            auto old = oCache.find(oCacheOrder.front());
+            oCacheOrder.pop_front();
+            if (old != oCache.end())
+            {
+                nCached -= old->second.size();
+                oCache.erase(old);
+            }
+        }
+    }
+};
+
+/// VtzReader::read_ranges. Local files: a seek and a read per range. Network files
+/// (VSIHasOptimizedReadMultiRange): the reads of the open (header, tile index) go through
+/// the file system's own cache (a seek and a read: GDAL's /vsicurl/ fetches them in
+/// CPL_VSIL_CURL_CHUNK_SIZE chunks it keeps, so opening the same file again, as
+/// gdal_translate's VRT and QGIS do, fetches nothing); tile blocks go to
+/// VSIFReadMultiRangeL, which fetches exactly the ranges given, all at once (one
+/// request per range, in parallel), instead of the chunked reads whose read-ahead doubles
+/// on every read that follows the last (tiles lie back to back: a window fetched 4x its
+/// blocks that way). A single range is given as two halves, which GDAL merges back into
+/// one request: with one range it would take the chunked path.
+int32_t VSIReadRanges(void *pUser, size_t n, const uint64_t *panOffsets,
+                      const size_t *panSizes, uint8_t *const *papabyBuffers,
+                      char *pszMessage, size_t nMessageCap)
+{
+    VSIReader *psReader = static_cast<VSIReader *>(pUser);
+    if (n > static_cast<size_t>(INT_MAX) - 1)
+    {
+        snprintf(pszMessage, nMessageCap, "%zu ranges in one read", n);
+        return 1;
+    }
+    std::lock_guard<std::mutex> oLock(psReader->oMutex);
+    CPLErrorReset();
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    int nRet = 0;
+    if (!psReader->bMultiRange || psReader->bOpening)
+    {
+        for (size_t i = 0; i < n && nRet == 0; ++i)
+            if (VSIFSeekL(psReader->fp, panOffsets[i], SEEK_SET) != 0 ||
+                VSIFReadL(papabyBuffers[i], 1, panSizes[i], psReader->fp) != panSizes[i])
+                nRet = -1;
+    }
+    else
+    {
+        // The ranges not cached, fetched at once.
+        std::vector<void *> apData;
+        std::vector<vsi_l_offset> anOffsets;
+        std::vector<size_t> anSizes;
+        std::vector<size_t> anMissing;
+        for (size_t i = 0; i < n; ++i)
+        {
+            if (const GByte *pabyHit = psReader->Cached(panOffsets[i], panSizes[i]))
+            {
+                memcpy(papabyBuffers[i], pabyHit, panSizes[i]);
+                continue;
+            }
+            anMissing.push_back(i);
+            apData.push_back(papabyBuffers[i]);
+            anOffsets.push_back(panOffsets[i]);
+            anSizes.push_back(panSizes[i]);
+        }
+        if (anMissing.size() == 1 && anSizes[0] >= 2)
+        {
+            const size_t nHalf = anSizes[0] / 2;
+            apData.push_back(static_cast<GByte *>(apData[0]) + nHalf);
+            anOffsets.push_back(anOffsets[0] + nHalf);
+            anSizes.push_back(anSizes[0] - nHalf);
+            anSizes[0] = nHalf;
+        }
+        if (!apData.empty())
+            nRet = VSIFReadMultiRangeL(static_cast<int>(apData.size()), apData.data(),
+                                       anOffsets.data(), anSizes.data(), psReader->fp);
+        if (nRet == 0)
+            for (size_t i : anMissing)
+                psReader->Keep(panOffsets[i], papabyBuffers[i], panSizes[i]);
+    }
+    CPLPopErrorHandler();
+    if (nRet != 0)
+    {
+        // GDAL's reason (e.g. an HTTP status) when the file system gave one.
+        const char *pszWhy = CPLGetLastErrorMsg();
+        snprintf(pszMessage, nMessageCap, "%s",
+                 pszWhy && pszWhy[0]
+                     ? pszWhy
+                     : "a short read or an I/O error in GDAL's VSI layer");
+        return 1;
+    }
+    return 0;
+}
+
+void VSIReaderClose(void *pUser)
+{
+    VSIReader *psReader = static_cast<VSIReader *>(pUser);
+    if (psReader->fp != nullptr)
+        VSIFCloseL(psReader->fp);
+    delete psReader;
+}
+
+/// vtz_open_reader over GDAL's VSI handle of pszFilename; nullptr after reporting why.
+VtzFile *OpenVSIReader(const char *pszFilename)
+{
+    VSILFILE *fp = VSIFOpenL(pszFilename, "rb");
+    if (fp == nullptr)
+    {
+        CPLError(CE_Failure, CPLE_OpenFailed, "vtz: cannot open %s", pszFilename);
+        return nullptr;
+    }
+    if (VSIFSeekL(fp, 0, SEEK_END) != 0)
+    {
+        VSIFCloseL(fp);
+        CPLError(CE_Failure, CPLE_FileIO, "vtz: cannot measure %s", pszFilename);
+        return nullptr;
+    }
+    VSIReader *psReader = new VSIReader();
+    psReader->fp = fp;
+    psReader->bMultiRange = VSIHasOptimizedReadMultiRange(pszFilename) != 0;
+    // VTZ_REMOTE_CACHE_MB (default 64): the tile blocks a network file's handle keeps.
+    const double dfCacheMB =
+        CPLAtof(CPLGetConfigOption("VTZ_REMOTE_CACHE_MB", "64"));
+    psReader->nCacheMax = static_cast<size_t>(
+        std::min(std::max(0.0, dfCacheMB), 1e6) * 1048576.0);
+    VtzReader sReader{};
+    sReader.user = psReader;
+    sReader.length = static_cast<uint64_t>(VSIFTellL(fp));
+    sReader.read_ranges = VSIReadRanges;
+    sReader.close = VSIReaderClose;
+    sReader.name = pszFilename;
+    // vtz_open_reader calls VSIReaderClose when it fails, vtz_close when it succeeded.
+    VtzFile *hFile = nullptr;
+    if (vtz_open_reader(&sReader, nullptr, &hFile) != VTZ_OK || hFile == nullptr)
+    {
+        ReportVtzError();
+        return nullptr;
+    }
+    // The open read what it keeps (header, index, metadata); from here on, tile blocks.
+    std::lock_guard<std::mutex> oLock(psReader->oMutex);
+    psReader->bOpening = false;
+    return hFile;
+}
+
 }  // namespace
 
 /************************************************************************/
@@ -154,6 +354,8 @@ class VTZDataset final : public GDALPamDataset
 
     VtzFile *m_hFile = nullptr;
     VtzInfo m_sInfo{};
+    // Read over a network (/vsicurl/, /vsis3/, ...: not VSIIsLocal).
+    bool m_bRemote = false;
     GDALDataType m_eDT = GDT_Unknown;
     int m_nDTSize = 0;
     OGRSpatialReference m_oSRS{};
@@ -408,7 +610,13 @@ CPLErr VTZRasterBand::IRasterIO(GDALRWFlag eRWFlag, int nXOff, int nYOff,
         const GIntBig nWindowSamples = static_cast<GIntBig>(nXSize) * nYSize;
         const bool bFits =
             nTileSamples * poGDS->m_nDTSize <= GDALGetCacheMax64() / 4;
-        if (bFullRes && (nWindowSamples * 4 <= nTileSamples || !bFits))
+        // A network file (not VSIIsLocal): the blocks of a window's tiles need their
+        // neighbours too (they blend across the margins), the window alone only the tiles
+        // it touches (a 256 x 256 window: 4 tiles instead of 16), and every tile is a
+        // request; so a window that is not a full-width swath is decoded exactly.
+        const bool bExactRemote =
+            poGDS->m_bRemote && !(nXOff == 0 && nXSize == nRasterXSize);
+        if (bFullRes && (nWindowSamples * 4 <= nTileSamples || !bFits || bExactRemote))
             return poGDS->ReadWindow(m_nLevel, nXOff, nYOff, nXSize, nYSize,
                                      pData, eBufType, nPixelSpace, nLineSpace);
         // Read-ahead: a full-width, full-resolution read is a whole-raster copy's
@@ -814,32 +1022,16 @@ GDALDataset *VTZDataset::Open(GDALOpenInfo *poOpenInfo)
         return nullptr;
     }
 
-    // Open by path; a /vsi path (in memory, in an archive, on the network) is read
-    // whole and opened from memory.
-    VtzFile *hFile = nullptr;
-    int rc;
-    if (STARTS_WITH(pszFilename, "/vsi"))
-    {
-        GByte *pabyData = nullptr;
-        vsi_l_offset nSize = 0;
-        if (!VSIIngestFile(nullptr, pszFilename, &pabyData, &nSize, -1))
-            return nullptr;  // VSIIngestFile reported why.
-        rc = vtz_open_memory(pabyData, static_cast<size_t>(nSize), nullptr,
-                             &hFile);
-        VSIFree(pabyData);
-    }
-    else
-    {
-        rc = vtz_open_path(pszFilename, nullptr, &hFile);
-    }
-    if (rc != VTZ_OK || hFile == nullptr)
-    {
-        ReportVtzError();
-        return nullptr;
-    }
+    // Every path, local or /vsi (in memory, in an archive, on a server: /vsicurl/,
+    // /vsis3/, ...), is read by ranges through GDAL's VSI layer: opening reads the
+    // header (and a version-2 file's tile index), a window the blocks of its tiles.
+    VtzFile *hFile = OpenVSIReader(pszFilename);
+    if (hFile == nullptr)
+        return nullptr;  // OpenVSIReader reported why.
 
     auto poDS = std::make_unique<VTZDataset>();
     poDS->m_hFile = hFile;
+    poDS->m_bRemote = !VSIIsLocal(pszFilename);
     if (vtz_get_info(hFile, &poDS->m_sInfo) != VTZ_OK)
     {
         ReportVtzError(pszFilename);

@@ -53,8 +53,8 @@
 // 64-bit float.
 #define VTZ_F64 5
 
-// An open `.vtz` file (opaque). Made by `vtz_open_path` / `vtz_open_memory`, released by
-// `vtz_close`.
+// An open `.vtz` file (opaque). Made by `vtz_open_path` / `vtz_open_memory` /
+// `vtz_open_reader`, released by `vtz_close`.
 typedef struct VtzFile VtzFile;
 
 // Limits on what a file may make the decoder allocate (0 in a field: vtz's default).
@@ -64,6 +64,44 @@ typedef struct VtzLimits {
   // Most bytes any one section may hold.
   uint64_t max_section_bytes;
 } VtzLimits;
+
+// Reads byte ranges of a `.vtz` for [`vtz_open_reader`]: the caller's own I/O (GDAL's
+// `VSIFReadMultiRangeL` over `/vsicurl/` or `/vsis3/`, an object store's client, a cache),
+// so a decode fetches only the header, the tile index and the blocks of the tiles a window
+// touches.
+//
+// Threads: for one handle, `read_ranges` is called by one thread at a time (the handle
+// serializes the calls), though not always the thread that called into vtz (a decode may
+// run on a pool thread). Two handles may call at the same time; a `user` shared between
+// handles needs its own lock. A callback must not call into vtz with the same handle,
+// and must not unwind (throw a C++ exception or `longjmp`) out of the call.
+typedef struct VtzReader {
+  // Passed as it is to `read_ranges` and `close`.
+  void *user;
+  // The file's length in bytes (vtz never asks for a byte at or past it).
+  uint64_t length;
+  // Fill `buffers[i]` with exactly `lengths[i]` bytes from offset `offsets[i]`, for i in
+  // 0..n (n ≥ 1; the ranges are ascending, none empty, none overlapping, each inside
+  // `length`; ranges closer than 16 KB are given as one, so a caller may issue them as
+  // they come, concurrently or as one multi-range request). Returns 0 when every buffer
+  // is filled, anything else on failure (a short read included); then it may write a
+  // NUL-terminated reason of at most `message_cap` bytes, NUL included, into `message`
+  // (it holds an empty string on entry), and the call into vtz returns `VTZ_ERR_IO` with
+  // that reason in `vtz_last_error()`.
+  int32_t (*read_ranges)(void *user,
+                         size_t n,
+                         const uint64_t *offsets,
+                         const size_t *lengths,
+                         uint8_t *const *buffers,
+                         char *message,
+                         size_t message_cap);
+  // Called once with `user` when vtz no longer needs it: by `vtz_close`, or before
+  // `vtz_open_reader` returns when the open fails. Null: nothing is called.
+  void (*close)(void *user);
+  // The file's path or URL for messages (UTF-8, NUL-terminated, copied); null: "the
+  // reader".
+  const char *name;
+} VtzReader;
 
 // What a file holds, read from its header and directory without decoding a sample.
 typedef struct VtzInfo {
@@ -192,6 +230,22 @@ int32_t vtz_open_path(const char *path, const struct VtzLimits *limits, struct V
 // null or points to a `VtzLimits`; `out` is null or writable.
 int32_t vtz_open_memory(const uint8_t *data,
                         size_t len,
+                        const struct VtzLimits *limits,
+                        struct VtzFile **out);
+
+// Open a `.vtz` read through the caller's callbacks (`VtzReader`): one read of its first
+// 64 KB (the header, and a version-4 file's tile index), the rest as decodes need it (a
+// version-2 file's tile index at its end; then each window's tile blocks). `reader` is
+// copied (its `name` too); `limits` may be null. On success `*out` is a handle for
+// `vtz_close`, which calls `reader->close`; on failure `*out` is null and
+// `reader->close` has been called (when `reader` is not null). A failing callback gives
+// `VTZ_ERR_IO` with its reason; a file shorter than its framing says, `VTZ_ERR_CORRUPT`.
+//
+// # Safety
+// `reader` is null or points to a `VtzReader` whose callbacks and `user` keep the
+// contract documented on it until `close` is called, and whose `name` is null or
+// NUL-terminated; `limits` is null or points to a `VtzLimits`; `out` is null or writable.
+int32_t vtz_open_reader(const struct VtzReader *reader,
                         const struct VtzLimits *limits,
                         struct VtzFile **out);
 

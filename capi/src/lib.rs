@@ -1,4 +1,5 @@
-//! The C ABI of vtz: open a `.vtz` from a path or from memory (with limits), read what it
+//! The C ABI of vtz: open a `.vtz` from a path, from memory or through the caller's
+//! range-read callbacks (`VtzReader`: a file on a server fetched by ranges), with limits, read what it
 //! holds without decoding (size, sample type, nodata, geotransform, CRS, GDAL metadata, tile
 //! grid, stored max error), decode the whole raster or a window into the caller's typed
 //! buffer, and encode the caller's buffer with a bound, losslessly or with a method.
@@ -18,9 +19,10 @@ use std::cell::RefCell;
 use std::ffi::{CStr, CString, c_char, c_void};
 use std::fs::File;
 use std::io::{BufReader, Cursor, Read, Seek};
+use std::ops::Range;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::PathBuf;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 use vtz::{
     Decoder, EncodeOptions, Error, ErrorBound, FileInfo, Georef, Limits, Method, Raster,
     RasterType, SampleType, ValueMapping, Window,
@@ -58,8 +60,8 @@ pub const VTZ_F32: i32 = 4;
 /// 64-bit float.
 pub const VTZ_F64: i32 = 5;
 
-/// An open `.vtz` file (opaque). Made by `vtz_open_path` / `vtz_open_memory`, released by
-/// `vtz_close`.
+/// An open `.vtz` file (opaque). Made by `vtz_open_path` / `vtz_open_memory` /
+/// `vtz_open_reader`, released by `vtz_close`.
 pub struct VtzFile {
     dec: Mutex<Decoder>,
     info: FileInfo,
@@ -311,7 +313,11 @@ fn geotransform(g: &Georef) -> [f64; 6] {
 }
 
 fn open(reader: Box<dyn ReadSeek>, lim: Option<&VtzLimits>) -> vtz::Result<Box<VtzFile>> {
-    let mut dec = Decoder::with_limits(reader, limits(lim))?;
+    handle(Decoder::with_limits(reader, limits(lim))?)
+}
+
+/// The handle of an opened decoder (what it holds read once).
+fn handle(mut dec: Decoder) -> vtz::Result<Box<VtzFile>> {
     let max_error = dec.max_error()?;
     let gdal_metadata = dec
         .gdal_metadata()?
@@ -413,6 +419,230 @@ pub unsafe extern "C" fn vtz_open_memory(
         };
         // SAFETY: `out` is null or writable (the caller's promise).
         unsafe { open_into(out, opened) }
+    })
+}
+
+/// Reads byte ranges of a `.vtz` for [`vtz_open_reader`]: the caller's own I/O (GDAL's
+/// `VSIFReadMultiRangeL` over `/vsicurl/` or `/vsis3/`, an object store's client, a cache),
+/// so a decode fetches only the header, the tile index and the blocks of the tiles a window
+/// touches.
+///
+/// Threads: for one handle, `read_ranges` is called by one thread at a time (the handle
+/// serializes the calls), though not always the thread that called into vtz (a decode may
+/// run on a pool thread). Two handles may call at the same time; a `user` shared between
+/// handles needs its own lock. A callback must not call into vtz with the same handle,
+/// and must not unwind (throw a C++ exception or `longjmp`) out of the call.
+#[repr(C)]
+pub struct VtzReader {
+    /// Passed as it is to `read_ranges` and `close`.
+    pub user: *mut c_void,
+    /// The file's length in bytes (vtz never asks for a byte at or past it).
+    pub length: u64,
+    /// Fill `buffers[i]` with exactly `lengths[i]` bytes from offset `offsets[i]`, for i in
+    /// 0..n (n ≥ 1; the ranges are ascending, none empty, none overlapping, each inside
+    /// `length`; ranges closer than 16 KB are given as one, so a caller may issue them as
+    /// they come, concurrently or as one multi-range request). Returns 0 when every buffer
+    /// is filled, anything else on failure (a short read included); then it may write a
+    /// NUL-terminated reason of at most `message_cap` bytes, NUL included, into `message`
+    /// (it holds an empty string on entry), and the call into vtz returns `VTZ_ERR_IO` with
+    /// that reason in `vtz_last_error()`.
+    pub read_ranges: Option<
+        unsafe extern "C" fn(
+            user: *mut c_void,
+            n: usize,
+            offsets: *const u64,
+            lengths: *const usize,
+            buffers: *const *mut u8,
+            message: *mut c_char,
+            message_cap: usize,
+        ) -> i32,
+    >,
+    /// Called once with `user` when vtz no longer needs it: by `vtz_close`, or before
+    /// `vtz_open_reader` returns when the open fails. Null: nothing is called.
+    pub close: Option<unsafe extern "C" fn(user: *mut c_void)>,
+    /// The file's path or URL for messages (UTF-8, NUL-terminated, copied); null: "the
+    /// reader".
+    pub name: *const c_char,
+}
+
+type ReadRangesFn = unsafe extern "C" fn(
+    *mut c_void,
+    usize,
+    *const u64,
+    *const usize,
+    *const *mut u8,
+    *mut c_char,
+    usize,
+) -> i32;
+
+/// The caller's callbacks and their data; `close` runs on drop.
+struct Callbacks {
+    user: *mut c_void,
+    read: Option<ReadRangesFn>,
+    close: Option<unsafe extern "C" fn(*mut c_void)>,
+}
+
+// SAFETY: `VtzReader`'s contract lets vtz call the callbacks from any thread, one call at a
+// time per handle; `CallbackSource` holds them behind a mutex, so no two threads use them
+// at once, and `user` is only passed back to them.
+unsafe impl Send for Callbacks {}
+
+impl Drop for Callbacks {
+    fn drop(&mut self) {
+        if let Some(close) = self.close {
+            // SAFETY: the caller's close, once (this value is dropped once), with its data.
+            unsafe { close(self.user) }
+        }
+    }
+}
+
+/// A [`vtz::RangeSource`] over the caller's `VtzReader`.
+struct CallbackSource {
+    calls: Mutex<Callbacks>,
+    len: u64,
+    name: String,
+}
+
+/// The longest reason a read callback may give, NUL included.
+const READER_MESSAGE_CAP: usize = 512;
+
+impl vtz::RangeSource for CallbackSource {
+    fn len(&self) -> vtz::Result<u64> {
+        Ok(self.len)
+    }
+
+    fn read_ranges(&self, ranges: &[Range<u64>]) -> vtz::Result<Vec<Vec<u8>>> {
+        for r in ranges {
+            if r.start > r.end || r.end > self.len {
+                return Err(Error::corrupt(format!(
+                    "{} is truncated: bytes {}..{} asked of a {}-byte file",
+                    self.name, r.start, r.end, self.len
+                )));
+            }
+        }
+        // Ascending, merged ranges for the callback; empty ones need no read.
+        let (merged, owner) = vtz::source::coalesce(ranges, vtz::source::COALESCE_GAP);
+        let wanted: Vec<usize> = (0..merged.len())
+            .filter(|&i| merged[i].end > merged[i].start)
+            .collect();
+        let mut got: Vec<Vec<u8>> = merged.iter().map(|_| Vec::new()).collect();
+        for &i in &wanted {
+            let n = usize::try_from(merged[i].end - merged[i].start)
+                .map_err(|_| Error::limit("a read larger than memory can address"))?;
+            got[i] = vec![0u8; n];
+        }
+        if !wanted.is_empty() {
+            let offsets: Vec<u64> = wanted.iter().map(|&i| merged[i].start).collect();
+            let lengths: Vec<usize> = wanted.iter().map(|&i| got[i].len()).collect();
+            let mut message = [0 as c_char; READER_MESSAGE_CAP];
+            let rc = {
+                let calls = self.calls.lock().unwrap_or_else(|p| p.into_inner());
+                let Some(read) = calls.read else {
+                    return Err(null("read_ranges"));
+                };
+                let buffers: Vec<*mut u8> = wanted.iter().map(|&i| got[i].as_mut_ptr()).collect();
+                // SAFETY: the caller's callback with its data; `offsets`, `lengths` and
+                // `buffers` hold `wanted.len()` entries, each buffer `lengths[i]` writable
+                // bytes (alive until the call returns), `message` `READER_MESSAGE_CAP`
+                // writable bytes holding an empty string. One call at a time (the lock).
+                unsafe {
+                    read(
+                        calls.user,
+                        wanted.len(),
+                        offsets.as_ptr(),
+                        lengths.as_ptr(),
+                        buffers.as_ptr(),
+                        message.as_mut_ptr(),
+                        READER_MESSAGE_CAP,
+                    )
+                }
+            };
+            if rc != 0 {
+                // The reason, up to its NUL (or the buffer's end if the callback left none).
+                let bytes: Vec<u8> = message
+                    .iter()
+                    .take_while(|&&c| c != 0)
+                    .map(|&c| c as u8)
+                    .collect();
+                let why = String::from_utf8_lossy(&bytes).into_owned();
+                let why = if why.is_empty() {
+                    format!("the read callback returned {rc}")
+                } else {
+                    why
+                };
+                let (first, last) = (offsets[0], merged[*wanted.last().unwrap_or(&0)].end);
+                return Err(Error::io(
+                    format!(
+                        "reading {} ({} range(s) in bytes {first}..{last})",
+                        self.name,
+                        wanted.len()
+                    ),
+                    std::io::Error::other(why),
+                ));
+            }
+        }
+        Ok(vtz::source::split(ranges, &merged, &owner, &got))
+    }
+
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+}
+
+/// Open a `.vtz` read through the caller's callbacks (`VtzReader`): one read of its first
+/// 64 KB (the header, and a version-4 file's tile index), the rest as decodes need it (a
+/// version-2 file's tile index at its end; then each window's tile blocks). `reader` is
+/// copied (its `name` too); `limits` may be null. On success `*out` is a handle for
+/// `vtz_close`, which calls `reader->close`; on failure `*out` is null and
+/// `reader->close` has been called (when `reader` is not null). A failing callback gives
+/// `VTZ_ERR_IO` with its reason; a file shorter than its framing says, `VTZ_ERR_CORRUPT`.
+///
+/// # Safety
+/// `reader` is null or points to a `VtzReader` whose callbacks and `user` keep the
+/// contract documented on it until `close` is called, and whose `name` is null or
+/// NUL-terminated; `limits` is null or points to a `VtzLimits`; `out` is null or writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn vtz_open_reader(
+    reader: *const VtzReader,
+    limits: *const VtzLimits,
+    out: *mut *mut VtzFile,
+) -> i32 {
+    guard(|| {
+        if !out.is_null() {
+            // SAFETY: writable (the caller's promise).
+            unsafe { *out = std::ptr::null_mut() };
+        }
+        // SAFETY: null or a valid VtzReader (the caller's promise).
+        let Some(r) = (unsafe { reader.as_ref() }) else {
+            return Err(null("reader"));
+        };
+        // From here on `close` runs exactly once, when `calls` is dropped: on any early
+        // return below, or with the handle.
+        let calls = Callbacks {
+            user: r.user,
+            read: r.read_ranges,
+            close: r.close,
+        };
+        // SAFETY: null or NUL-terminated (the caller's promise).
+        let name = unsafe { text(r.name, "reader->name") }?.unwrap_or_else(|| "the reader".into());
+        if calls.read.is_none() {
+            return Err(null("reader->read_ranges"));
+        }
+        let src = CallbackSource {
+            calls: Mutex::new(calls),
+            len: r.length,
+            name: name.clone(),
+        };
+        // SAFETY: null or a valid VtzLimits.
+        let lim = crate::limits(unsafe { limits.as_ref() });
+        // SAFETY: `out` is null or writable (the caller's promise).
+        unsafe {
+            open_into(out, move || {
+                let dec =
+                    Decoder::open_with_limits(Arc::new(src), lim).map_err(|e| e.context(&name))?;
+                handle(dec)
+            })
+        }
     })
 }
 

@@ -1,5 +1,6 @@
 /* The C ABI from C: round trips within the bound, windows equal crops, the golden files
- * decode to the Rust decoder's samples bit for bit, and bad input gives a code and a
+ * decode to the Rust decoder's samples bit for bit, a file read through range-read
+ * callbacks (vtz_open_reader) decodes as from memory, and bad input gives a code and a
  * message, never a crash. Built and run by capi/run-c-test.sh (CI: .ci/run).
  *
  *   capi_test GOLDEN_DIR TMP_DIR
@@ -463,6 +464,139 @@ static void test_mapped_codes(void) {
   CHECK(rc == VTZ_ERR_INVALID_ARGUMENT, "an offset and scale over floats: rc %d", rc);
 }
 
+/* A VtzReader over bytes in memory: counts calls and bytes, checks the ranges it is given
+   (ascending, non-empty, inside the file) and that no two calls overlap; fails on demand. */
+struct mem_reader {
+  const unsigned char *data;
+  size_t len;
+  int calls, ranges, closed, bad_ranges, overlap, in_flight;
+  unsigned long long bytes;
+  int fail_from_call; /* 0: never; k: the k-th call and later fail */
+};
+static int32_t mem_read_ranges(void *user, size_t n, const uint64_t *offsets, const size_t *lengths,
+                               uint8_t *const *buffers, char *message, size_t message_cap) {
+  struct mem_reader *m = user;
+  if (__atomic_fetch_add(&m->in_flight, 1, __ATOMIC_SEQ_CST) != 0) m->overlap = 1;
+  m->calls++;
+  int rc = 0;
+  if (m->fail_from_call && m->calls >= m->fail_from_call) {
+    snprintf(message, message_cap, "HTTP 503 from the test reader (call %d)", m->calls);
+    rc = 1;
+  } else {
+    for (size_t i = 0; i < n; i++) {
+      if (lengths[i] == 0 || offsets[i] + lengths[i] > m->len ||
+          (i > 0 && offsets[i] < offsets[i - 1] + lengths[i - 1]))
+        m->bad_ranges = 1;
+      if (offsets[i] + lengths[i] > m->len) { rc = 2; break; }
+      memcpy(buffers[i], m->data + offsets[i], lengths[i]);
+      m->bytes += lengths[i];
+      m->ranges++;
+    }
+  }
+  __atomic_fetch_sub(&m->in_flight, 1, __ATOMIC_SEQ_CST);
+  return rc;
+}
+static void mem_close(void *user) { ((struct mem_reader *)user)->closed++; }
+
+struct reader_job {
+  VtzFile *f;
+  int rc;
+  int16_t *buf;
+};
+static void *read_on_a_thread(void *p) {
+  struct reader_job *j = p;
+  j->rc = vtz_read(j->f, 0, 0, 1024, 1024, VTZ_I16, j->buf, 1024 * 1024 * 2, 4);
+  return NULL;
+}
+
+/* vtz_open_reader: a file read through callbacks decodes as vtz_open_memory's, bit for bit;
+   a window reads only part of the file; failures give VTZ_ERR_IO with the callback's reason. */
+static void test_reader(void) {
+  enum { RW = 1024, RH = 1024 };
+  static int16_t z[RW * RH], a[RW * RH], b[RW * RH], c[RW * RH], wa[100 * 70], wb[100 * 70];
+  unsigned s = 12345;
+  for (int i = 0; i < RW * RH; i++) {
+    s = s * 1103515245u + 12345u;
+    z[i] = (int16_t)(500 + (i % RW) / 3 + (i / RW) / 5 + (int)((s >> 16) % 64));
+  }
+  VtzEncodeOptions o = vtz_encode_options_init(); /* lossless */
+  o.tile = 256;
+  o.method = "residual";
+  o.effort = 1;
+  uint8_t *bytes = NULL;
+  size_t len = 0;
+  int rc = vtz_encode(z, VTZ_I16, RW, RH, &o, &bytes, &len);
+  CHECK(rc == VTZ_OK && len > 4 * 65536, "reader test file: rc %d, %zu bytes", rc, len);
+  if (rc != VTZ_OK) return;
+  VtzFile *fm = NULL, *fr = NULL;
+  CHECK(vtz_open_memory(bytes, len, NULL, &fm) == VTZ_OK, "open_memory");
+
+  struct mem_reader m = {bytes, len, 0, 0, 0, 0, 0, 0, 0, 0};
+  VtzReader r = {&m, len, mem_read_ranges, mem_close, "mem://test.vtz"};
+  rc = vtz_open_reader(&r, NULL, &fr);
+  CHECK(rc == VTZ_OK && fr && m.closed == 0, "open_reader: rc %d", rc);
+  if (!fm || !fr) return;
+  VtzInfo im, ir;
+  vtz_get_info(fm, &im);
+  vtz_get_info(fr, &ir);
+  CHECK(im.width == ir.width && im.height == ir.height && im.sample_type == ir.sample_type &&
+            im.max_error == ir.max_error && im.tile_width == ir.tile_width && im.tile_cols == ir.tile_cols &&
+            ir.tiled == 1 && ir.tile_cols == 4 && ir.file_bytes == len,
+        "the same info through the reader as from memory");
+  CHECK(m.bytes < len / 2, "opening read %llu of %zu bytes", m.bytes, len);
+  /* A window inside tile (1, 1): the head, the index, that tile's block (and margins). */
+  rc = vtz_read(fr, 300, 310, 100, 70, VTZ_I16, wb, sizeof wb, 2);
+  CHECK(rc == VTZ_OK, "window through the reader: rc %d", rc);
+  CHECK(vtz_read(fm, 300, 310, 100, 70, VTZ_I16, wa, sizeof wa, 2) == VTZ_OK, "window from memory");
+  CHECK(memcmp(wa, wb, sizeof wa) == 0, "the window through callbacks equals vtz_open_memory's bit for bit");
+  CHECK(m.bytes < len / 2, "the window read %llu of %zu bytes in %d calls", m.bytes, len, m.calls);
+  /* The whole raster, from two threads at once on the same handle. */
+  CHECK(vtz_read(fm, 0, 0, RW, RH, VTZ_I16, a, sizeof a, 0) == VTZ_OK, "full read from memory");
+  CHECK(memcmp(a, z, sizeof a) == 0, "lossless");
+  struct reader_job j1 = {fr, -1, b}, j2 = {fr, -1, c};
+  pthread_t t1, t2;
+  pthread_create(&t1, NULL, read_on_a_thread, &j1);
+  pthread_create(&t2, NULL, read_on_a_thread, &j2);
+  pthread_join(t1, NULL);
+  pthread_join(t2, NULL);
+  CHECK(j1.rc == VTZ_OK && j2.rc == VTZ_OK && memcmp(a, b, sizeof a) == 0 && memcmp(a, c, sizeof a) == 0,
+        "full reads through callbacks on two threads equal vtz_open_memory's: rc %d %d", j1.rc, j2.rc);
+  CHECK(!m.overlap, "read_ranges is never called by two threads at once for one handle");
+  CHECK(!m.bad_ranges, "ranges are ascending, non-empty and inside the file");
+  /* A failing callback after the open: VTZ_ERR_IO with its reason; the handle still works. */
+  m.fail_from_call = m.calls + 1;
+  rc = vtz_read(fr, 700, 700, 100, 70, VTZ_I16, wb, sizeof wb, 1);
+  CHECK(rc == VTZ_ERR_IO && strstr(vtz_last_error(), "HTTP 503 from the test reader") &&
+            strstr(vtz_last_error(), "mem://test.vtz"),
+        "a failing read callback: rc %d", rc);
+  m.fail_from_call = 0;
+  rc = vtz_read(fr, 700, 700, 100, 70, VTZ_I16, wb, sizeof wb, 1);
+  CHECK(rc == VTZ_OK, "a later read succeeds: rc %d", rc);
+  vtz_close(fr);
+  CHECK(m.closed == 1, "vtz_close calls close once (%d)", m.closed);
+  vtz_close(fm);
+
+  /* Failing opens: *out is null, close is called once, the status names the cause. */
+  struct mem_reader m2 = {bytes, len, 0, 0, 0, 0, 0, 0, 0, 1};
+  VtzReader r2 = {&m2, len, mem_read_ranges, mem_close, NULL};
+  fr = (VtzFile *)1;
+  rc = vtz_open_reader(&r2, NULL, &fr);
+  CHECK(rc == VTZ_ERR_IO && fr == NULL && m2.closed == 1 && strstr(vtz_last_error(), "HTTP 503"),
+        "a callback failing on the open: rc %d, closed %d", rc, m2.closed);
+  struct mem_reader m3 = {bytes, len, 0, 0, 0, 0, 0, 0, 0, 0};
+  VtzReader r3 = {&m3, len - 1000, mem_read_ranges, mem_close, "short"};
+  rc = vtz_open_reader(&r3, NULL, &fr);
+  CHECK(rc == VTZ_ERR_CORRUPT && fr == NULL && m3.closed == 1, "a length shorter than the file: rc %d", rc);
+  VtzReader r4 = {&m3, len, NULL, mem_close, "no callback"};
+  rc = vtz_open_reader(&r4, NULL, &fr);
+  CHECK(rc == VTZ_ERR_INVALID_ARGUMENT && fr == NULL && m3.closed == 2, "no read_ranges: rc %d", rc);
+  CHECK(vtz_open_reader(NULL, NULL, &fr) == VTZ_ERR_INVALID_ARGUMENT && fr == NULL, "a null reader");
+  VtzLimits lim = {0, 100}; /* sections of at most 100 bytes: the tile index is larger */
+  rc = vtz_open_reader(&r, &lim, &fr);
+  CHECK(rc == VTZ_ERR_LIMIT && fr == NULL && m.closed == 2, "limits apply: rc %d, closed %d", rc, m.closed);
+  vtz_free_bytes(bytes, len);
+}
+
 int main(int argc, char **argv) {
   if (argc != 3) {
     fprintf(stderr, "usage: capi_test GOLDEN_DIR TMP_DIR\n");
@@ -473,6 +607,7 @@ int main(int argc, char **argv) {
   test_lossless_float_and_tiles(argv[2]);
   test_golden(argv[1]);
   test_mapped_codes();
+  test_reader();
   printf("capi_test (vtz %s): %d checks, %d failed\n", vtz_version(), checks, failures);
   return failures ? 1 : 0;
 }
