@@ -143,10 +143,30 @@ fn opening_is_one_read_and_a_window_reads_only_its_rows_of_tiles() {
         let t = d.info().tiles.clone().unwrap();
         let full = vtz::decode(&bytes).unwrap();
         for win in [
-            Window { x: 300, y: 300, width: 256, height: 256 },
-            Window { x: 0, y: 0, width: 256, height: 256 },
-            Window { x: 700, y: 10, width: 256, height: 256 },
-            Window { x: 130, y: 130, width: 100, height: 100 },
+            Window {
+                x: 300,
+                y: 300,
+                width: 256,
+                height: 256,
+            },
+            Window {
+                x: 0,
+                y: 0,
+                width: 256,
+                height: 256,
+            },
+            Window {
+                x: 700,
+                y: 10,
+                width: 256,
+                height: 256,
+            },
+            Window {
+                x: 130,
+                y: 130,
+                width: 100,
+                height: 100,
+            },
         ] {
             src.reset();
             let r = d.window(win).decode().unwrap();
@@ -220,7 +240,11 @@ fn crc32(b: &[u8]) -> u32 {
     for &x in b {
         c ^= x as u32;
         for _ in 0..8 {
-            c = if c & 1 != 0 { (c >> 1) ^ 0xEDB8_8320 } else { c >> 1 };
+            c = if c & 1 != 0 {
+                (c >> 1) ^ 0xEDB8_8320
+            } else {
+                c >> 1
+            };
         }
     }
     !c
@@ -235,11 +259,18 @@ fn overview(bytes: &[u8], k: u32) -> vtz::Raster {
 fn an_overview_reads_a_prefix_of_each_block_and_decodes_what_the_whole_block_gives() {
     for effort in [None, Some(1)] {
         let bytes = big_file(effort);
-        assert!(progressive_tiles(&bytes) >= 48, "effort {effort:?}: {} of 64 tiles progressive", progressive_tiles(&bytes));
+        assert!(
+            progressive_tiles(&bytes) >= 48,
+            "effort {effort:?}: {} of 64 tiles progressive",
+            progressive_tiles(&bytes)
+        );
         let whole = one_chunk_each(&bytes);
         assert_ne!(whole, bytes);
         // The rewritten file is a valid version-4 file that decodes the same.
-        assert_eq!(vtz::decode(&whole).unwrap().data, vtz::decode(&bytes).unwrap().data);
+        assert_eq!(
+            vtz::decode(&whole).unwrap().data,
+            vtz::decode(&bytes).unwrap().data
+        );
         for k in 1..=5 {
             let a = overview(&bytes, k);
             let b = overview(&whole, k);
@@ -256,9 +287,15 @@ fn an_overview_reads_a_prefix_of_each_block_and_decodes_what_the_whole_block_giv
             d.options(common::decode_opts(|o| o.overview = Some(k)));
             d.decode().unwrap();
             let share = src.asked() as f64 / bytes.len() as f64;
-            eprintln!("effort {effort:?}: overview {k} read {:.1} % of the file", 100.0 * share);
+            eprintln!(
+                "effort {effort:?}: overview {k} read {:.1} % of the file",
+                100.0 * share
+            );
             if k >= 3 {
-                assert!(share < 0.35, "effort {effort:?}: overview {k} read {share:.3} of the file");
+                assert!(
+                    share < 0.35,
+                    "effort {effort:?}: overview {k} read {share:.3} of the file"
+                );
             }
         }
     }
@@ -329,12 +366,18 @@ fn corrupt_msg(bytes: &[u8]) -> String {
 fn corrupt_version_4_indexes_are_rejected_naming_the_tile() {
     let src = terrain(Kind::Hill, 150, 100, 5, true, vtz::SampleType::I16);
     let bytes = vtz::encode(&src, &opts(1.0, 40, None)).unwrap();
-    let t = vtz::info(&bytes, Default::default()).unwrap().tiles.unwrap();
+    let t = vtz::info(&bytes, Default::default())
+        .unwrap()
+        .tiles
+        .unwrap();
     assert_eq!(t.tiles.len(), 12);
     let w = t.tiles[3].window;
     // No chunks; too many; reserved bytes set.
     let m = corrupt_msg(&patch_entry(&bytes, 3, 4, &[0]));
-    assert!(m.contains(&format!("tile 3 (at {},{})", w.x, w.y)) && m.contains("chunks"), "{m}");
+    assert!(
+        m.contains(&format!("tile 3 (at {},{})", w.x, w.y)) && m.contains("chunks"),
+        "{m}"
+    );
     let m = corrupt_msg(&patch_entry(&bytes, 3, 4, &[14]));
     assert!(m.contains("tile 3"), "{m}");
     let m = corrupt_msg(&patch_entry(&bytes, 3, 5, &[1]));
@@ -371,6 +414,8 @@ fn corrupt_version_4_indexes_are_rejected_naming_the_tile() {
         max_section_bytes: 100,
         ..Default::default()
     };
-    let e = Decoder::with_limits(Cursor::new(bytes.clone()), limits).err().unwrap();
+    let e = Decoder::with_limits(Cursor::new(bytes.clone()), limits)
+        .err()
+        .unwrap();
     assert!(matches!(e, Error::LimitExceeded { .. }), "{e}");
 }

@@ -580,16 +580,21 @@ fn a_tile_range_off_the_sample_types_lattice_is_corrupt() {
     o.tile = Some(128);
     let bytes = vtz::encode(&r, &o).unwrap();
     assert!(vtz::decode(&bytes).is_ok());
-    // The index ends the file: the tile count N, N entries of 56 bytes (min at +32), a CRC.
-    let (start, n) = (1..4096)
-        .map(|n| (bytes.len() - 8 - 56 * n, n))
-        .find(|&(at, n)| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize == n)
-        .expect("a tile index");
+    // Version 4: the index follows the header (its length in the header's last 4 bytes):
+    // the tile count N, N entries (40 bytes, min at +16, then 8 per chunk), a CRC.
+    assert_eq!(u16::from_le_bytes([bytes[8], bytes[9]]), 4);
+    let h = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let start = 20 + h;
+    let len = u32::from_le_bytes(bytes[h + 12..h + 16].try_into().unwrap()) as usize;
+    let n = u32::from_le_bytes(bytes[start..start + 4].try_into().unwrap()) as usize;
     assert!(n >= 4, "{n} tiles");
     let mut bad = bytes.clone();
-    let at = start + 4 + 56 * (n - 1) + 32;
-    bad[at..at + 8].copy_from_slice(&0.5f64.to_le_bytes());
-    let end = start + 4 + 56 * n;
+    let mut at = start + 4;
+    for _ in 0..n - 1 {
+        at += 40 + 8 * bad[at + 4] as usize;
+    }
+    bad[at + 16..at + 24].copy_from_slice(&0.5f64.to_le_bytes());
+    let end = start + len - 4;
     let crc = crc32fast::hash(&bad[start..end]);
     bad[end..end + 4].copy_from_slice(&crc.to_le_bytes());
     let e = vtz::decode(&bad).unwrap_err();

@@ -564,11 +564,18 @@ fn the_version_4_golden_files_decode_to_their_expected_samples() {
             std::fs::write(&ovr_path, o).unwrap();
         }
         let bytes = std::fs::read(&vtz_path).unwrap();
-        assert_eq!(u16::from_le_bytes([bytes[8], bytes[9]]), 4, "{name}: a version-4 file");
+        assert_eq!(
+            u16::from_le_bytes([bytes[8], bytes[9]]),
+            4,
+            "{name}: a version-4 file"
+        );
         let info = vtz::info(&bytes, Default::default()).unwrap();
         assert_eq!(info.version, 4);
         let t = info.tiles.as_ref().expect("tiles");
-        assert_eq!((t.cols, t.rows, t.tile_width, t.tile_height), (3, 2, 32, 32));
+        assert_eq!(
+            (t.cols, t.rows, t.tile_width, t.tile_height),
+            (3, 2, 32, 32)
+        );
         assert_eq!(info.sections.len(), 2, "metadata and gdal-metadata");
         // Chunk counts from the index (each entry: 40 bytes, then 8 per chunk).
         let h = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
@@ -578,13 +585,19 @@ fn the_version_4_golden_files_decode_to_their_expected_samples() {
             chunks.push(bytes[at + 4]);
             at += 40 + 8 * bytes[at + 4] as usize;
         }
-        assert!(chunks.iter().filter(|&&c| c > 1).count() >= 4, "{name}: chunks {chunks:?}");
+        assert!(
+            chunks.iter().filter(|&&c| c > 1).count() >= 4,
+            "{name}: chunks {chunks:?}"
+        );
         let r = vtz::decode(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!((r.width, r.height), (96, 64));
         assert_eq!(r.nodata, Some(-32768.0));
         assert!(r.valid_count() < r.len(), "the window has voids");
         let expected = std::fs::read(&exp_path).unwrap();
-        assert!(as_f32_bytes(&r) == expected, "{name}: decoded samples differ");
+        assert!(
+            as_f32_bytes(&r) == expected,
+            "{name}: decoded samples differ"
+        );
         let mut got = Vec::new();
         for k in 1..=3 {
             got.extend(as_f32_bytes(&ovr(&bytes, k)));
@@ -596,7 +609,10 @@ fn the_version_4_golden_files_decode_to_their_expected_samples() {
             .verify()
             .unwrap();
         for n in 0..bytes.len() {
-            assert!(vtz::decode(&bytes[..n]).is_err(), "{name}: prefix of {n} bytes decoded");
+            assert!(
+                vtz::decode(&bytes[..n]).is_err(),
+                "{name}: prefix of {n} bytes decoded"
+            );
         }
     }
 }

@@ -121,6 +121,48 @@ fn variants(data: &[u8]) -> Vec<(String, Vec<u8>)> {
                 out.push((name.into(), edited(data, &f, &[])));
             }
         }
+        4 => {
+            // Version 4: the tile index follows the header, so only the header's fields
+            // are edited (its checksum recomputed): sizes, tile sides, the margin and the
+            // index length, which end the header body.
+            let (w, h) = (u32_at(data, 16), u32_at(data, 20));
+            let t = 16 + hlen - 16;
+            let header_only = |f: &[(usize, Vec<u8>)]| {
+                let mut b = data.to_vec();
+                for (at, v) in f {
+                    b[*at..*at + v.len()].copy_from_slice(v);
+                }
+                let crc = crc32fast::hash(&b[..16 + hlen]);
+                b[16 + hlen..20 + hlen].copy_from_slice(&crc.to_le_bytes());
+                b
+            };
+            for (nw, nh) in [
+                (16384, 16384),
+                (1 << 28, 1),
+                (1, 1 << 28),
+                (2 * w, h),
+                (w + 1, h),
+            ] {
+                out.push((
+                    format!("size{nw}x{nh}"),
+                    header_only(&[(16, le32(nw)), (20, le32(nh))]),
+                ));
+            }
+            for (tw, th) in [(16, 16), (w, 16), (16, h)] {
+                out.push((
+                    format!("tile{tw}x{th}"),
+                    header_only(&[(t, le32(tw)), (t + 4, le32(th))]),
+                ));
+            }
+            out.push(("margin".into(), header_only(&[(t + 8, le32(1 << 30))])));
+            for (name, v) in [
+                ("index_max", u32::MAX),
+                ("index_small", 8),
+                ("index_plus1", u32_at(data, t + 12) + 1),
+            ] {
+                out.push((name.into(), header_only(&[(t + 12, le32(v))])));
+            }
+        }
         v => panic!("a golden file of version {v}"),
     }
     out

@@ -47,7 +47,10 @@ fn every_method_round_trips_within_the_bound_over_tiles() {
         assert_eq!(d.mask, src.mask, "{}: nodata kept", m.name());
         let me = max_err(&src, &d);
         assert!(me <= e, "{}: max error {me} over {e}", m.name());
-        let v = Decoder::new(Cursor::new(bytes.to_vec())).unwrap().verify().unwrap();
+        let v = Decoder::new(Cursor::new(bytes.to_vec()))
+            .unwrap()
+            .verify()
+            .unwrap();
         // Each tile's coded samples, margins included.
         assert_eq!(v.valid, t.tiles.iter().map(|x| x.valid).sum::<u64>());
         assert!(v.valid > src.valid_count() as u64);
@@ -233,15 +236,25 @@ fn crc32(b: &[u8]) -> u32 {
 /// version 2 but decodes it forever (tests/cloud.rs checks version 4's index).
 #[test]
 fn corrupt_version_2_indexes_are_rejected_naming_the_tile() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden/v2_kauai_tiles.vtz");
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden/v2_kauai_tiles.vtz");
     let bytes = std::fs::read(&path).unwrap();
     assert_eq!(u16::from_le_bytes([bytes[8], bytes[9]]), 2);
-    let t = vtz::info(&bytes, Default::default()).unwrap().tiles.unwrap();
+    let t = vtz::info(&bytes, Default::default())
+        .unwrap()
+        .tiles
+        .unwrap();
     let n = t.tiles.len();
     assert_eq!(n, 6);
     let off = |k: usize| t.tiles[k].offset;
     // An offset outside the file.
-    let m = corrupt_msg(&patch_index(&bytes, n, 3, 0, &(bytes.len() as u64 * 2).to_le_bytes()));
+    let m = corrupt_msg(&patch_index(
+        &bytes,
+        n,
+        3,
+        0,
+        &(bytes.len() as u64 * 2).to_le_bytes(),
+    ));
     let w = t.tiles[3].window;
     assert!(m.contains(&format!("tile 3 (at {},{})", w.x, w.y)), "{m}");
     // Overlapping the previous tile; repeating it.
@@ -274,7 +287,10 @@ fn corrupt_version_2_indexes_are_rejected_naming_the_tile() {
     assert!(corrupt_msg(&b).contains("tile index checksum"));
     // Every proper prefix.
     for k in 0..bytes.len() {
-        assert!(Decoder::new(Cursor::new(bytes[..k].to_vec())).is_err(), "prefix {k}");
+        assert!(
+            Decoder::new(Cursor::new(bytes[..k].to_vec())).is_err(),
+            "prefix {k}"
+        );
     }
 }
 

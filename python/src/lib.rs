@@ -436,7 +436,8 @@ fn georef_dict<'py>(py: Python<'py>, g: &Georef) -> PyResult<Bound<'py, PyDict>>
 #[pyfunction]
 fn info<'py>(py: Python<'py>, data: &Bound<'py, PyBytes>) -> PyResult<Bound<'py, PyDict>> {
     let bytes = data.as_bytes();
-    let mut dec = vtz::Decoder::new(std::io::Cursor::new(bytes.to_vec())).map_err(|e| to_py(py, e))?;
+    let mut dec =
+        vtz::Decoder::new(std::io::Cursor::new(bytes.to_vec())).map_err(|e| to_py(py, e))?;
     let fi = dec.info().clone();
     let d = PyDict::new(py);
     d.set_item("width", fi.width)?;

@@ -54,7 +54,10 @@ pub struct FileCells {
 
 /// The cells of the sites of levels 0..=K of the `.vtz` in `reader` (untiled, with a sites
 /// section), with ε = |surface_K − reference| over the valid samples of each cell.
-pub fn file_cells<R: Read + Seek + Send + 'static>(reader: R, req: &CellsRequest) -> Result<FileCells> {
+pub fn file_cells<R: Read + Seek + Send + 'static>(
+    reader: R,
+    req: &CellsRequest,
+) -> Result<FileCells> {
     let mut d = Decoder::with_limits(reader, req.limits)?;
     let info = d.info().clone();
     let all = d.sites()?;

@@ -30,8 +30,8 @@ use crate::model::{Georef, InMemory, Raster, RowSource, SampleType, ValueMapping
 use crate::quant::ErrorBound;
 use crate::source::{FileSource, MemorySource, RangeSource, ReadSeekSource, Source};
 use std::io::{Cursor, Read, Seek};
-use std::sync::Arc;
 use std::path::Path;
+use std::sync::Arc;
 
 #[cfg(feature = "internals")]
 pub use decode::read_all;
@@ -119,7 +119,10 @@ pub fn decode_with(bytes: &[u8], opts: &DecodeOptions) -> Result<Raster> {
 
 /// Decode a `.vtz` from a reader: only the header, the directory and the sections the
 /// decode needs are read.
-pub fn decode_from<R: Read + Seek + Send + 'static>(reader: R, opts: &DecodeOptions) -> Result<Raster> {
+pub fn decode_from<R: Read + Seek + Send + 'static>(
+    reader: R,
+    opts: &DecodeOptions,
+) -> Result<Raster> {
     let mut d = Decoder::with_limits(reader, opts.limits)?;
     d.options(opts.clone());
     d.decode()

@@ -207,9 +207,7 @@ pub(crate) fn verify<R: Read + Seek>(rd: &mut ContainerReader<R>) -> Result<Veri
 /// [`verify`] for a tiled file: the global sections, then every tile's block (its
 /// checksum), its sections checked as a file's, and its decode against its index entry
 /// (valid count, range, max error).
-pub(crate) fn verify_tiled(
-    rd: &mut crate::container::tiled::TiledReader,
-) -> Result<Verified> {
+pub(crate) fn verify_tiled(rd: &mut crate::container::tiled::TiledReader) -> Result<Verified> {
     for e in rd.global().to_vec() {
         let p = rd.global_section(e.kind)?.expect("the directory lists it");
         let text = std::str::from_utf8(&p)

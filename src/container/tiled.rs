@@ -402,11 +402,10 @@ impl<W: Write + Seek> TiledWriter<W> {
         }
         let io = |e| Error::io("writing the file", e);
         match &mut self.spool {
-            Spool::Memory(v) if v.len() + block.len() <= SPOOL_MEMORY => {
-                v.extend_from_slice(block)
-            }
+            Spool::Memory(v) if v.len() + block.len() <= SPOOL_MEMORY => v.extend_from_slice(block),
             Spool::Memory(v) => {
-                let mut f = tempfile::tempfile().map_err(|e| Error::io("creating a temporary file", e))?;
+                let mut f =
+                    tempfile::tempfile().map_err(|e| Error::io("creating a temporary file", e))?;
                 f.write_all(v).map_err(io)?;
                 f.write_all(block).map_err(io)?;
                 self.spool = Spool::File(f);
@@ -754,7 +753,10 @@ fn read_cloud_index(
         }
         let length = prev as u64;
         if chunks[0].0 < 12 {
-            return Err(t(format!("a first chunk of {} bytes is too short", chunks[0].0)));
+            return Err(t(format!(
+                "a first chunk of {} bytes is too short",
+                chunks[0].0
+            )));
         }
         if length > limits.max_section_bytes {
             return Err(Error::limit(format!(
@@ -795,7 +797,10 @@ fn read_cloud_index(
                 "file is truncated: its tiles end at byte {at}, the file at {file_len}"
             ))
         } else {
-            Error::corrupt(format!("{} unexpected bytes after the last tile", file_len - at))
+            Error::corrupt(format!(
+                "{} unexpected bytes after the last tile",
+                file_len - at
+            ))
         });
     }
     Ok((tiles, global))
@@ -857,7 +862,11 @@ impl TiledReader {
         if !checksum_ok(h.finalize(), crc_bytes) {
             return Err(Error::corrupt("header checksum mismatch"));
         }
-        let fields = if version == VERSION_CLOUD { CLOUD_FIELDS_LEN } else { TILE_FIELDS_LEN };
+        let fields = if version == VERSION_CLOUD {
+            CLOUD_FIELDS_LEN
+        } else {
+            TILE_FIELDS_LEN
+        };
         if body.len() < fields {
             return Err(Error::corrupt("header: too short for the tile fields"));
         }
@@ -878,13 +887,30 @@ impl TiledReader {
             let index_len = r.u32("index length")? as u64;
             r.finish()?;
             grid.check()?;
-            read_cloud_index(&mut inner, &header, &grid, after_header, index_len, &limits, names)?
+            read_cloud_index(
+                &mut inner,
+                &header,
+                &grid,
+                after_header,
+                index_len,
+                &limits,
+                names,
+            )?
         } else {
             let index_offset = r.u64("index offset")?;
             let index_len = r.u64("index length")?;
             r.finish()?;
             grid.check()?;
-            read_index_v2(&mut inner, &header, &grid, after_header, index_offset, index_len, &limits, names)?
+            read_index_v2(
+                &mut inner,
+                &header,
+                &grid,
+                after_header,
+                index_offset,
+                index_len,
+                &limits,
+                names,
+            )?
         };
         // Only metadata and GDAL metadata belong in the global directory (FORMAT.md): a
         // mask, flat regions or a representation there would apply to no tile.
@@ -993,7 +1019,9 @@ impl TiledReader {
                         break;
                     }
                     if !checksum_ok(crc32fast::hash(&buf[from..end]), &crc.to_le_bytes()) {
-                        return Err(Error::corrupt(format!("{name}: chunk {j} checksum mismatch")));
+                        return Err(Error::corrupt(format!(
+                            "{name}: chunk {j} checksum mismatch"
+                        )));
                     }
                     from = end;
                 }
@@ -1038,7 +1066,14 @@ impl TileOpener<'_> {
             ..self.header.clone()
         };
         let name = tile_name(&self.grid, k);
-        let rd = ContainerReader::tile(Cursor::new(block), h, e.length, self.limits, self.names, &name)?;
+        let rd = ContainerReader::tile(
+            Cursor::new(block),
+            h,
+            e.length,
+            self.limits,
+            self.names,
+            &name,
+        )?;
         if rd
             .entries()
             .get(rd.header().primary as usize)

@@ -313,7 +313,10 @@ impl Source {
     }
     /// The bytes `start..end`.
     pub fn read_at(&self, r: Range<u64>) -> Result<Vec<u8>> {
-        Ok(self.read_ranges(std::slice::from_ref(&r))?.pop().unwrap_or_default())
+        Ok(self
+            .read_ranges(std::slice::from_ref(&r))?
+            .pop()
+            .unwrap_or_default())
     }
 }
 
@@ -370,7 +373,10 @@ mod tests {
     #[test]
     fn a_range_past_the_end_is_a_truncated_file_not_a_short_read() {
         let s = MemorySource::new(vec![1u8; 10]);
-        assert!(matches!(s.read_ranges(&[5..11]), Err(Error::Corrupt { .. })));
+        assert!(matches!(
+            s.read_ranges(&[5..11]),
+            Err(Error::Corrupt { .. })
+        ));
         let src = Source::open(Arc::new(s)).unwrap();
         assert_eq!(src.read_at(2..4).unwrap(), vec![1, 1]);
     }
