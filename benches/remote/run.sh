@@ -20,7 +20,7 @@
 #
 #   benches/remote/run.sh DATA_DIR [RUNS]          (or VTZ_REMOTE_DATA=DATA_DIR; RUNS = 3)
 #
-# DATA_DIR (large: ~0.6 GB; keep it out of the repository, e.g. /work/bigdata/tiles) gets
+# DATA_DIR (large: ~0.8 GB; keep it out of the repository, e.g. /work/bigdata/tiles) gets
 # the inputs when they are missing, and keeps them between runs:
 #   mosaic20k.tif           benches/tiles/make_inputs.py DATA_DIR --only mosaic (INPUTS_PYTHON,
 #                           default /work/venv/bin/python: numpy, tifffile, imagecodecs)
