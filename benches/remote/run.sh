@@ -96,7 +96,11 @@ if [ ! -f "$src" ]; then
 fi
 
 stamp="vtz $(sha256sum "$vtz" | cut -d' ' -f1) max_error=$max_error"
-if [ ! -f "$data/mosaic.vtz" ] || [ "$(cat "$data/mosaic.vtz.stamp" 2>/dev/null)" != "$stamp" ]; then
+# KEEP_VTZ=1 keeps a mosaic.vtz encoded earlier (by an encoder that writes the same bytes:
+# say which in the results), e.g. when only the readers changed since.
+if [ "${KEEP_VTZ:-0}" = 1 ] && [ -f "$data/mosaic.vtz.stamp" ]; then
+  say "KEEP_VTZ=1: keeping mosaic.vtz ($(cat "$data/mosaic.vtz.stamp"))"
+elif [ ! -f "$data/mosaic.vtz" ] || [ "$(cat "$data/mosaic.vtz.stamp" 2>/dev/null)" != "$stamp" ]; then
   say "encoding mosaic.vtz with $vtz (--max-error $max_error, default tiling)"
   rm -f "$data/mosaic.vtz.stamp"
   s=$(now)
