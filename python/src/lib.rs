@@ -501,6 +501,12 @@ fn info_dict<'py>(py: Python<'py>, fi: &FileInfo) -> PyResult<Bound<'py, PyDict>
             td.set_item("cols", t.cols)?;
             td.set_item("rows", t.rows)?;
             td.set_item("margin", t.margin)?;
+            // Where each tile's block lies in the file, in tile order: (offset, bytes).
+            let blocks = PyList::empty(py);
+            for ti in &t.tiles {
+                blocks.append((ti.offset, ti.bytes))?;
+            }
+            td.set_item("blocks", blocks)?;
             d.set_item("tiles", td)?;
         }
         None => d.set_item("tiles", py.None())?,
