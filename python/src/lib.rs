@@ -471,6 +471,8 @@ fn info_dict<'py>(py: Python<'py>, fi: &FileInfo) -> PyResult<Bound<'py, PyDict>
     d.set_item("value_offset", fi.mapping.offset)?;
     d.set_item("value_scale", fi.mapping.scale)?;
     d.set_item("nodata", fi.nodata)?;
+    // As the decoded array holds it: the nodata value, or its code when it holds codes.
+    d.set_item("stored_nodata", fi.nodata.map(|nd| out.stored(nd)))?;
     d.set_item("range", fi.range)?;
     d.set_item("bytes", fi.file_bytes)?;
     let primary = fi.sections.iter().find(|s| s.primary);
@@ -716,14 +718,21 @@ struct Reader {
 }
 
 impl Reader {
+    /// Open a decoder over `src` (the GIL released); `context` names a local file in the
+    /// error, as `Decoder::open_path` does.
     fn open(
         py: Python<'_>,
         src: Arc<dyn RangeSource>,
         py_src: Option<Arc<PySource>>,
+        context: Option<&std::path::Path>,
     ) -> PyResult<Reader> {
         let s = src.clone();
         let dec = py
             .detach(|| Decoder::open_with_limits(s, Limits::default()))
+            .map_err(|e| match context {
+                Some(p) => e.context(p.display()),
+                None => e,
+            })
             .map_err(|e| source_error(py, py_src.as_deref(), e))?;
         let info = dec.info().clone();
         Ok(Reader {
@@ -761,23 +770,14 @@ impl Reader {
     fn from_path(py: Python<'_>, path: std::path::PathBuf) -> PyResult<Reader> {
         let src: Arc<dyn RangeSource> =
             Arc::new(FileSource::open(&path).map_err(|e| to_py(py, e))?);
-        Reader::open(py, src, None).map_err(|e| {
-            // As `Decoder::open_path`: the message names the file.
-            let msg = e.value(py).str().map(|s| s.to_string()).unwrap_or_default();
-            let named = path.display().to_string();
-            if msg.starts_with(&named) {
-                e
-            } else {
-                PyErr::from_type(e.get_type(py), (format!("{named}: {msg}"),))
-            }
-        })
+        Reader::open(py, src, None, Some(&path))
     }
 
     /// Bytes in memory.
     #[staticmethod]
     fn from_bytes(py: Python<'_>, data: &Bound<'_, PyBytes>) -> PyResult<Reader> {
         let src: Arc<dyn RangeSource> = Arc::new(MemorySource::new(data.as_bytes().to_vec()));
-        Reader::open(py, src, None)
+        Reader::open(py, src, None, None)
     }
 
     /// An fsspec filesystem and a path in it (`size`: the object's length in bytes).
@@ -795,7 +795,7 @@ impl Reader {
             name,
             error: Mutex::new(None),
         });
-        Reader::open(py, src.clone(), Some(src))
+        Reader::open(py, src.clone(), Some(src), None)
     }
 
     /// A binary file-like with `seek` and `read` (`size`: its length in bytes).
@@ -810,7 +810,7 @@ impl Reader {
             name,
             error: Mutex::new(None),
         });
-        Reader::open(py, src.clone(), Some(src))
+        Reader::open(py, src.clone(), Some(src), None)
     }
 
     /// What the file holds (`vtz.info`'s dict, without `max_error`).

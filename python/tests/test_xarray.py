@@ -153,3 +153,24 @@ def test_mask_and_scale_and_untiled_files():
         v = ds["elevation"].values
         assert np.array_equal(np.isnan(v), dec == -9999)
         assert np.array_equal(v[~np.isnan(v)], dec[dec != -9999])
+
+
+def test_codes_with_offset_and_scale():
+    """A file of integer codes (GDAL's offset and scale): the codes as vtz.decode gives them,
+    with scale_factor/add_offset; mask_and_scale=True gives the values, nodata as NaN."""
+    a = (np.arange(60 * 70).reshape(60, 70) % 500).astype(np.int16)
+    a[0, :5] = -32768
+    data = vtz.encode(a, scale=0.1, offset=100, nodata=-32768, tile=32)
+    with vtz.open(data) as r:
+        assert (r.dtype, r.nodata, r.scale, r.offset) == (np.int16, -32768, 0.1, 100)
+        same(r.read(), vtz.decode(data))
+    with xr.open_dataset(io.BytesIO(data), engine="vtz", chunks={}) as ds:
+        e = ds["elevation"]
+        assert e.attrs["scale_factor"] == 0.1 and e.attrs["add_offset"] == 100
+        assert e.attrs["_FillValue"] == -32768
+        same(e.values, vtz.decode(data))
+    with xr.open_dataset(io.BytesIO(data), engine="vtz", mask_and_scale=True) as ds:
+        v = ds["elevation"].values
+        assert np.array_equal(np.isnan(v), a == -32768)
+        ok = a != -32768
+        np.testing.assert_allclose(v[ok], 100 + 0.1 * a[ok], rtol=0, atol=1e-9)

@@ -262,12 +262,7 @@ class Raster:
 
     @property
     def nodata(self) -> Optional[float]:
-        nd = self._info["nodata"]
-        if nd is None:
-            return None
-        if self.scale is not None:  # the array holds codes: the nodata value's code
-            return (nd - self.offset) / self.scale
-        return nd
+        return self._info["stored_nodata"]
 
     @property
     def offset(self) -> Optional[float]:
