@@ -245,6 +245,17 @@ def test_http_url_reads_ranges(tiled, http_server):
         assert got < len(data) / 4
         same(r.read(overview=2), vtz.decode(data, overview=2))
         same(r.read(), vtz.decode(data))
+    # A missing object, and one gone after opening: vtz's I/O error naming the URL, with
+    # fsspec's exception as the cause.
+    with pytest.raises(vtz.VtzIOError, match="missing.vtz: FileNotFoundError") as e:
+        vtz.open(http_server.url + "/missing.vtz")
+    assert isinstance(e.value.__cause__, FileNotFoundError)
+    http_server.objects["/gone.vtz"] = data
+    r = vtz.open(http_server.url + "/gone.vtz")
+    del http_server.objects["/gone.vtz"]
+    with pytest.raises(vtz.VtzIOError, match="reading .*/gone.vtz: FileNotFoundError") as e:
+        r.read()
+    assert isinstance(e.value.__cause__, FileNotFoundError)
     # Pickled (as Dask sends it to a worker) and opened again from the URL.
     with vtz.open(url) as r:
         again = pickle.loads(pickle.dumps(r))

@@ -15,7 +15,7 @@ from typing import Any, List, Optional, Tuple, Union
 import numpy as np
 
 from . import _vtz
-from ._errors import InvalidArgumentError
+from ._errors import InvalidArgumentError, VtzIOError
 
 #: Overviews listed by :attr:`Raster.overviews`: levels 1, 2, ... while the longer side
 #: keeps at least this many samples (as GDAL's VTZ driver lists them).
@@ -43,7 +43,10 @@ def _fsspec_url(url: str, storage_options: dict) -> Tuple[Any, str]:
 
 
 def _size(fs: Any, path: str, name: str) -> int:
-    size = fs.size(path)
+    try:
+        size = fs.size(path)
+    except OSError as e:  # as a local file's: vtz's I/O error naming it, fsspec's as the cause
+        raise VtzIOError(f"I/O error: opening {name}: {type(e).__name__}: {e}") from e
     if size is None:
         raise InvalidArgumentError(
             f"{name}: the server does not say the object's size (no Content-Length); "
