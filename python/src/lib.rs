@@ -699,9 +699,66 @@ impl RangeSource for PySource {
     }
 }
 
+/// A source that keeps what its file's opening read (the first 64 KB; a version-2 file's
+/// tile index), so the decoders opened later for concurrent reads open without a request.
+struct KeepOpening {
+    inner: Arc<dyn RangeSource>,
+    /// True while the first decoder opens.
+    recording: std::sync::atomic::AtomicBool,
+    kept: Mutex<Vec<(Range<u64>, Arc<Vec<u8>>)>>,
+}
+
+impl KeepOpening {
+    fn new(inner: Arc<dyn RangeSource>) -> KeepOpening {
+        KeepOpening {
+            inner,
+            recording: std::sync::atomic::AtomicBool::new(true),
+            kept: Mutex::new(Vec::new()),
+        }
+    }
+
+    fn opened(&self) {
+        self.recording
+            .store(false, std::sync::atomic::Ordering::Release);
+    }
+
+    /// The bytes of `r` from what was kept, if one kept read holds it.
+    fn from_kept(&self, r: &Range<u64>) -> Option<Vec<u8>> {
+        locked(&self.kept).iter().find_map(|(k, b)| {
+            (k.start <= r.start && r.end <= k.end && r.start <= r.end)
+                .then(|| b[(r.start - k.start) as usize..(r.end - k.start) as usize].to_vec())
+        })
+    }
+}
+
+impl RangeSource for KeepOpening {
+    fn len(&self) -> vtz::Result<u64> {
+        self.inner.len()
+    }
+
+    fn read_ranges(&self, ranges: &[Range<u64>]) -> vtz::Result<Vec<Vec<u8>>> {
+        let kept: Vec<Option<Vec<u8>>> = ranges.iter().map(|r| self.from_kept(r)).collect();
+        if kept.iter().all(Option::is_some) {
+            return Ok(kept.into_iter().flatten().collect());
+        }
+        let got = self.inner.read_ranges(ranges)?;
+        if self.recording.load(std::sync::atomic::Ordering::Acquire) {
+            let mut k = locked(&self.kept);
+            for (r, b) in ranges.iter().zip(&got) {
+                k.push((r.clone(), Arc::new(b.clone())));
+            }
+        }
+        Ok(got)
+    }
+
+    fn name(&self) -> String {
+        self.inner.name()
+    }
+}
+
 /// An opened file: its source, what it holds, and decoders over the source (one per
-/// concurrent read: a `Decoder` decodes one request at a time; each opened costs one read of
-/// the file's first 64 KB).
+/// concurrent read: a `Decoder` decodes one request at a time; those opened after the first
+/// take the header and index from what the first read).
 struct Opened {
     src: Arc<dyn RangeSource>,
     py_src: Option<Arc<PySource>>,
@@ -726,7 +783,8 @@ impl Reader {
         py_src: Option<Arc<PySource>>,
         context: Option<&std::path::Path>,
     ) -> PyResult<Reader> {
-        let s = src.clone();
+        let keep = Arc::new(KeepOpening::new(src));
+        let s: Arc<dyn RangeSource> = keep.clone();
         let dec = py
             .detach(|| Decoder::open_with_limits(s, Limits::default()))
             .map_err(|e| match context {
@@ -734,6 +792,8 @@ impl Reader {
                 None => e,
             })
             .map_err(|e| source_error(py, py_src.as_deref(), e))?;
+        keep.opened();
+        let src: Arc<dyn RangeSource> = keep;
         let info = dec.info().clone();
         Ok(Reader {
             opened: Mutex::new(Some(Arc::new(Opened {

@@ -266,7 +266,9 @@ def test_http_url_reads_ranges(tiled, http_server):
 def test_reads_from_threads_at_once_are_the_same(tiled):
     data = tiled["bytes"]
     ref = vtz.decode(data)
-    with vtz.open(io.BytesIO(data)) as r:
+    f = LoggingFile(data)
+    with vtz.open(f) as r:
+        opening = list(f.reads)  # the head, then the index
         ty, tx = r.tile_shape
         cells = [(i, j) for i in range(6) for j in range(10)]
 
@@ -277,6 +279,10 @@ def test_reads_from_threads_at_once_are_the_same(tiled):
         with ThreadPoolExecutor(4) as ex:
             for (i, j), a in ex.map(one, cells):
                 same(a, ref[i * ty:(i + 1) * ty, j * tx:(j + 1) * tx])
+        # The decoders opened for the other threads took the header and index from the
+        # first one's reads: the file's opening reads happened once.
+        for read in opening:
+            assert f.reads.count(read) == 1, (read, len(f.reads))
 
 
 def test_masked_read(tmp_path):
