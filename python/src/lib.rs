@@ -699,13 +699,16 @@ impl RangeSource for PySource {
     }
 }
 
+/// A range read on opening and its bytes.
+type KeptRead = (Range<u64>, Vec<u8>);
+
 /// A source that keeps what its file's opening read (the first 64 KB; a version-2 file's
 /// tile index), so the decoders opened later for concurrent reads open without a request.
 struct KeepOpening {
     inner: Arc<dyn RangeSource>,
     /// True while the first decoder opens.
     recording: std::sync::atomic::AtomicBool,
-    kept: Mutex<Vec<(Range<u64>, Arc<Vec<u8>>)>>,
+    kept: Mutex<Vec<KeptRead>>,
 }
 
 impl KeepOpening {
@@ -723,7 +726,7 @@ impl KeepOpening {
     }
 
     /// The bytes of `r` from what was kept, if one kept read holds it.
-    fn from_kept(&self, r: &Range<u64>) -> Option<Vec<u8>> {
+    fn kept_bytes(&self, r: &Range<u64>) -> Option<Vec<u8>> {
         locked(&self.kept).iter().find_map(|(k, b)| {
             (k.start <= r.start && r.end <= k.end && r.start <= r.end)
                 .then(|| b[(r.start - k.start) as usize..(r.end - k.start) as usize].to_vec())
@@ -737,7 +740,7 @@ impl RangeSource for KeepOpening {
     }
 
     fn read_ranges(&self, ranges: &[Range<u64>]) -> vtz::Result<Vec<Vec<u8>>> {
-        let kept: Vec<Option<Vec<u8>>> = ranges.iter().map(|r| self.from_kept(r)).collect();
+        let kept: Vec<Option<Vec<u8>>> = ranges.iter().map(|r| self.kept_bytes(r)).collect();
         if kept.iter().all(Option::is_some) {
             return Ok(kept.into_iter().flatten().collect());
         }
@@ -745,7 +748,7 @@ impl RangeSource for KeepOpening {
         if self.recording.load(std::sync::atomic::Ordering::Acquire) {
             let mut k = locked(&self.kept);
             for (r, b) in ranges.iter().zip(&got) {
-                k.push((r.clone(), Arc::new(b.clone())));
+                k.push((r.clone(), b.clone()));
             }
         }
         Ok(got)
