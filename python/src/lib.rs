@@ -702,21 +702,64 @@ impl RangeSource for PySource {
 /// A range read on opening and its bytes.
 type KeptRead = (Range<u64>, Vec<u8>);
 
+/// Recently read ranges (tile blocks), up to `cap` bytes, the oldest dropped first.
+struct BlockCache {
+    cap: u64,
+    bytes: u64,
+    map: std::collections::HashMap<(u64, u64), Arc<Vec<u8>>>,
+    order: std::collections::VecDeque<(u64, u64)>,
+}
+
+impl BlockCache {
+    fn get(&self, r: &Range<u64>) -> Option<Vec<u8>> {
+        self.map.get(&(r.start, r.end)).map(|b| b.as_ref().clone())
+    }
+
+    fn put(&mut self, r: &Range<u64>, b: &[u8]) {
+        let key = (r.start, r.end);
+        let n = b.len() as u64;
+        if n == 0 || n > self.cap || self.map.contains_key(&key) {
+            return;
+        }
+        self.map.insert(key, Arc::new(b.to_vec()));
+        self.order.push_back(key);
+        self.bytes += n;
+        while self.bytes > self.cap {
+            let Some(old) = self.order.pop_front() else {
+                break;
+            };
+            if let Some(b) = self.map.remove(&old) {
+                self.bytes -= b.len() as u64;
+            }
+        }
+    }
+}
+
 /// A source that keeps what its file's opening read (the first 64 KB; a version-2 file's
-/// tile index), so the decoders opened later for concurrent reads open without a request.
+/// tile index), so the decoders opened later for concurrent reads open without a request,
+/// and the last `cache_bytes` of blocks read: a tile's window reads its neighbours' blocks
+/// too (it blends across their margins), so the reads of neighbouring windows (Dask's
+/// tasks, one per tile) fetch each block about once instead of up to nine times.
 struct KeepOpening {
     inner: Arc<dyn RangeSource>,
     /// True while the first decoder opens.
     recording: std::sync::atomic::AtomicBool,
     kept: Mutex<Vec<KeptRead>>,
+    cache: Mutex<BlockCache>,
 }
 
 impl KeepOpening {
-    fn new(inner: Arc<dyn RangeSource>) -> KeepOpening {
+    fn new(inner: Arc<dyn RangeSource>, cache_bytes: u64) -> KeepOpening {
         KeepOpening {
             inner,
             recording: std::sync::atomic::AtomicBool::new(true),
             kept: Mutex::new(Vec::new()),
+            cache: Mutex::new(BlockCache {
+                cap: cache_bytes,
+                bytes: 0,
+                map: Default::default(),
+                order: Default::default(),
+            }),
         }
     }
 
@@ -740,18 +783,33 @@ impl RangeSource for KeepOpening {
     }
 
     fn read_ranges(&self, ranges: &[Range<u64>]) -> vtz::Result<Vec<Vec<u8>>> {
-        let kept: Vec<Option<Vec<u8>>> = ranges.iter().map(|r| self.kept_bytes(r)).collect();
-        if kept.iter().all(Option::is_some) {
-            return Ok(kept.into_iter().flatten().collect());
-        }
-        let got = self.inner.read_ranges(ranges)?;
-        if self.recording.load(std::sync::atomic::Ordering::Acquire) {
-            let mut k = locked(&self.kept);
-            for (r, b) in ranges.iter().zip(&got) {
-                k.push((r.clone(), b.clone()));
+        let mut out: Vec<Option<Vec<u8>>> = ranges
+            .iter()
+            .map(|r| self.kept_bytes(r).or_else(|| locked(&self.cache).get(r)))
+            .collect();
+        let missing: Vec<usize> = (0..ranges.len()).filter(|&i| out[i].is_none()).collect();
+        if !missing.is_empty() {
+            let asked: Vec<Range<u64>> = missing.iter().map(|&i| ranges[i].clone()).collect();
+            let got = self.inner.read_ranges(&asked)?;
+            if got.len() != asked.len() {
+                return Err(Error::corrupt(format!(
+                    "{}: a read of {} ranges gave {}",
+                    self.name(),
+                    asked.len(),
+                    got.len()
+                )));
+            }
+            let recording = self.recording.load(std::sync::atomic::Ordering::Acquire);
+            for ((i, r), b) in missing.into_iter().zip(&asked).zip(got) {
+                if recording {
+                    locked(&self.kept).push((r.clone(), b.clone()));
+                } else {
+                    locked(&self.cache).put(r, &b);
+                }
+                out[i] = Some(b);
             }
         }
-        Ok(got)
+        Ok(out.into_iter().flatten().collect())
     }
 
     fn name(&self) -> String {
@@ -785,8 +843,9 @@ impl Reader {
         src: Arc<dyn RangeSource>,
         py_src: Option<Arc<PySource>>,
         context: Option<&std::path::Path>,
+        cache_bytes: u64,
     ) -> PyResult<Reader> {
-        let keep = Arc::new(KeepOpening::new(src));
+        let keep = Arc::new(KeepOpening::new(src, cache_bytes));
         let s: Arc<dyn RangeSource> = keep.clone();
         let dec = py
             .detach(|| Decoder::open_with_limits(s, Limits::default()))
@@ -833,24 +892,27 @@ impl Reader {
     fn from_path(py: Python<'_>, path: std::path::PathBuf) -> PyResult<Reader> {
         let src: Arc<dyn RangeSource> =
             Arc::new(FileSource::open(&path).map_err(|e| to_py(py, e))?);
-        Reader::open(py, src, None, Some(&path))
+        Reader::open(py, src, None, Some(&path), 0)
     }
 
     /// Bytes in memory.
     #[staticmethod]
     fn from_bytes(py: Python<'_>, data: &Bound<'_, PyBytes>) -> PyResult<Reader> {
         let src: Arc<dyn RangeSource> = Arc::new(MemorySource::new(data.as_bytes().to_vec()));
-        Reader::open(py, src, None, None)
+        Reader::open(py, src, None, None, 0)
     }
 
-    /// An fsspec filesystem and a path in it (`size`: the object's length in bytes).
+    /// An fsspec filesystem and a path in it (`size`: the object's length in bytes;
+    /// `cache_bytes`: how many bytes of recently read blocks to keep).
     #[staticmethod]
+    #[pyo3(signature = (fs, path, size, name, cache_bytes=0))]
     fn from_fsspec(
         py: Python<'_>,
         fs: Py<PyAny>,
         path: Py<PyAny>,
         size: u64,
         name: String,
+        cache_bytes: u64,
     ) -> PyResult<Reader> {
         let src = Arc::new(PySource {
             reads: PyReads::Fsspec { fs, path },
@@ -858,12 +920,20 @@ impl Reader {
             name,
             error: Mutex::new(None),
         });
-        Reader::open(py, src.clone(), Some(src), None)
+        Reader::open(py, src.clone(), Some(src), None, cache_bytes)
     }
 
-    /// A binary file-like with `seek` and `read` (`size`: its length in bytes).
+    /// A binary file-like with `seek` and `read` (`size`: its length in bytes;
+    /// `cache_bytes`: how many bytes of recently read blocks to keep).
     #[staticmethod]
-    fn from_file(py: Python<'_>, file: Py<PyAny>, size: u64, name: String) -> PyResult<Reader> {
+    #[pyo3(signature = (file, size, name, cache_bytes=0))]
+    fn from_file(
+        py: Python<'_>,
+        file: Py<PyAny>,
+        size: u64,
+        name: String,
+        cache_bytes: u64,
+    ) -> PyResult<Reader> {
         let src = Arc::new(PySource {
             reads: PyReads::File {
                 file,
@@ -873,7 +943,7 @@ impl Reader {
             name,
             error: Mutex::new(None),
         });
-        Reader::open(py, src.clone(), Some(src), None)
+        Reader::open(py, src.clone(), Some(src), None, cache_bytes)
     }
 
     /// What the file holds (`vtz.info`'s dict, without `max_error`).

@@ -153,7 +153,8 @@ def test_a_one_tile_window_reads_only_its_tile_and_neighbours(tiled):
     data = tiled["bytes"]
     info = vtz.info(data)
     f = LoggingFile(data)
-    with vtz.open(f) as r:
+    # No block cache: what the decoder itself reads.
+    with vtz.open(f, cache_bytes=0) as r:
         # The head (first 64 KB), then a version-2 file's tile index (written last).
         assert f.reads[0] == (0, 64 * 1024)
         print(f"opening: {len(f.reads)} reads, {f.bytes_read()} of {len(data)} bytes")
@@ -178,6 +179,18 @@ def test_a_one_tile_window_reads_only_its_tile_and_neighbours(tiled):
         # Every block not wholly inside the head, once.
         past_head = [n for off, n in info["tiles"]["blocks"] if off + n > 64 * 1024]
         assert f.bytes_read() == sum(past_head)
+    # With the block cache (the default), a window read again fetches nothing.
+    f = LoggingFile(data)
+    with vtz.open(f) as r:
+        ty, tx = r.tile_shape
+        f.reads.clear()
+        first = r.read(((2 * ty, 3 * ty), (4 * tx, 5 * tx)))
+        n = len(f.reads)
+        assert n > 0
+        same(r.read(((2 * ty, 3 * ty), (4 * tx, 5 * tx))), first)
+        assert len(f.reads) == n
+    with pytest.raises(vtz.InvalidArgumentError, match="cache_bytes"):
+        vtz.open(f, cache_bytes=-1)
 
 
 class CountingMemoryFS:

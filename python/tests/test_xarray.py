@@ -174,3 +174,25 @@ def test_codes_with_offset_and_scale():
         assert np.array_equal(np.isnan(v), a == -32768)
         ok = a != -32768
         np.testing.assert_allclose(v[ok], 100 + 0.1 * a[ok], rtol=0, atol=1e-9)
+
+
+def test_dask_tasks_over_http_fetch_each_block_about_once(tiled, http_server):
+    """Each tile's task reads its neighbours' blocks too; the raster's block cache makes the
+    60 tasks fetch about the file once (without it: about six times)."""
+    pytest.importorskip("aiohttp", reason="fsspec's HTTP filesystem needs aiohttp")
+    data = tiled["bytes"]
+    http_server.objects["/cache/t.vtz"] = data
+    url = http_server.url + "/cache/t.vtz"
+    ref = vtz.decode(data)
+    fetched = {}
+    for cache in (None, 0):
+        del http_server.log[:]
+        with xr.open_dataset(url, engine="vtz", chunks={}, cache_bytes=cache) as ds:
+            with dask.config.set(scheduler="synchronous"):
+                same(ds["elevation"].values, ref)
+        fetched[cache] = sum(e - s for _, s, e in http_server.log)
+        print(f"cache_bytes={cache}: {len(http_server.log)} GETs, {fetched[cache]} bytes "
+              f"for a {len(data)}-byte file")
+    # the head, the index and every block past the head once (one straddles the head)
+    assert fetched[None] <= len(data) + 64 * 1024
+    assert fetched[0] > 3 * len(data)

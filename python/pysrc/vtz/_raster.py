@@ -17,6 +17,10 @@ import numpy as np
 from . import _vtz
 from ._errors import InvalidArgumentError, VtzIOError
 
+#: Bytes of recently read tile blocks a URL's or file-like's :class:`Raster` keeps (see
+#: :func:`open`'s ``cache_bytes``).
+DEFAULT_CACHE_BYTES = 64 << 20
+
 #: Overviews listed by :attr:`Raster.overviews`: levels 1, 2, ... while the longer side
 #: keeps at least this many samples (as GDAL's VTZ driver lists them).
 MIN_OVERVIEW_SIDE = 64
@@ -55,7 +59,7 @@ def _size(fs: Any, path: str, name: str) -> int:
     return int(size)
 
 
-def _open_native(spec: tuple) -> Tuple[Any, str]:
+def _open_native(spec: tuple, cache_bytes: int) -> Tuple[Any, str]:
     """The native reader of a source spec (see :func:`open`) and its name for messages."""
     kind = spec[0]
     if kind == "bytes":
@@ -65,11 +69,11 @@ def _open_native(spec: tuple) -> Tuple[Any, str]:
     if kind == "url":
         url, storage_options = spec[1], spec[2]
         fs, path = _fsspec_url(url, storage_options)
-        return _vtz.Reader.from_fsspec(fs, path, _size(fs, path, url), url), url
+        return _vtz.Reader.from_fsspec(fs, path, _size(fs, path, url), url, cache_bytes), url
     if kind == "fsspec":
         fs, path = spec[1], spec[2]
         name = fs.unstrip_protocol(path) if hasattr(fs, "unstrip_protocol") else str(path)
-        return _vtz.Reader.from_fsspec(fs, path, _size(fs, path, name), name), name
+        return _vtz.Reader.from_fsspec(fs, path, _size(fs, path, name), name, cache_bytes), name
     if kind == "file":
         f = spec[1]
         name = str(getattr(f, "name", None) or f"a {type(f).__name__}")
@@ -79,7 +83,7 @@ def _open_native(spec: tuple) -> Tuple[Any, str]:
             size = f.tell()
         if pos is not None:
             f.seek(pos)
-        return _vtz.Reader.from_file(f, int(size), name), name
+        return _vtz.Reader.from_file(f, int(size), name, cache_bytes), name
     raise AssertionError(kind)  # pragma: no cover
 
 
@@ -120,7 +124,9 @@ def _spec(source: Any, storage_options: dict) -> tuple:
     )
 
 
-def open(source: Any, **storage_options: Any) -> "Raster":  # noqa: A001 - vtz.open
+def open(  # noqa: A001 - vtz.open
+    source: Any, *, cache_bytes: int = DEFAULT_CACHE_BYTES, **storage_options: Any
+) -> "Raster":
     """Open a ``.vtz`` file for lazy reads: the header and tile index now (the first 64 KB),
     the samples window by window in :meth:`Raster.read`.
 
@@ -132,6 +138,12 @@ def open(source: Any, **storage_options: Any) -> "Raster":  # noqa: A001 - vtz.o
         filesystem's package, e.g. ``s3fs``); the bytes of a file; an fsspec file or
         ``OpenFile`` (its filesystem's ``cat_ranges`` reads the ranges); or any binary
         file-like with ``seek`` and ``read`` (one range after another).
+    cache_bytes : int
+        A URL's or file-like's raster keeps this many bytes of the tile blocks it read last
+        (default 64 MiB; 0: none). A window blends its tile with the neighbours' margins, so
+        it reads their blocks too: with the cache, the reads of neighbouring windows (Dask's
+        tasks, one per tile) fetch each block about once instead of up to nine times. Local
+        paths and bytes keep none (the OS's page cache, memory).
     **storage_options
         Given to fsspec with a URL (``anon=True``, ``key=...``, ``client_kwargs=...``).
 
@@ -150,12 +162,14 @@ def open(source: Any, **storage_options: Any) -> "Raster":  # noqa: A001 - vtz.o
     ImportError
         A URL without fsspec installed.
     """
+    if isinstance(cache_bytes, bool) or not isinstance(cache_bytes, (int, np.integer)) or cache_bytes < 0:
+        raise InvalidArgumentError(f"cache_bytes must be an int >= 0, not {cache_bytes!r}")
     spec = _spec(source, storage_options)
-    return Raster._open(spec)
+    return Raster._open(spec, int(cache_bytes))
 
 
-def _reopen(spec: tuple) -> "Raster":
-    return Raster._open(spec)
+def _reopen(spec: tuple, cache_bytes: int = DEFAULT_CACHE_BYTES) -> "Raster":
+    return Raster._open(spec, cache_bytes)
 
 
 def _crs(g: Optional[dict]) -> Optional[str]:
@@ -225,10 +239,11 @@ class Raster:
         raise TypeError("use vtz.open(path, url, bytes or file)")
 
     @classmethod
-    def _open(cls, spec: tuple) -> "Raster":
+    def _open(cls, spec: tuple, cache_bytes: int) -> "Raster":
         self = object.__new__(cls)
         self._spec = spec
-        self._native, self.name = _open_native(spec)
+        self._cache_bytes = cache_bytes
+        self._native, self.name = _open_native(spec, cache_bytes)
         self._info = self._native.info()
         return self
 
@@ -243,7 +258,7 @@ class Raster:
                     f"a vtz.Raster opened from {self.name} cannot be pickled (its file cannot "
                     "be); open it from a path or URL to send it to Dask workers"
                 ) from e
-        return (_reopen, (self._spec,))
+        return (_reopen, (self._spec, self._cache_bytes))
 
     # ---------------------------------------------------------------- metadata
 

@@ -131,6 +131,7 @@ class VtzBackendEntrypoint(BackendEntrypoint):
 
     - ``overview=K``: overview K (every 2**K-th sample; its pixels 2**K times larger).
     - ``storage_options``: given to fsspec with a URL (``s3://``, ``https://``, ...).
+    - ``cache_bytes``: :func:`vtz.open`'s (the blocks a URL's raster keeps; 64 MiB).
     - ``mask_and_scale=True``: nodata samples become NaN and codes become values (xarray's
       CF decoding of ``_FillValue``, ``scale_factor``, ``add_offset``); the default gives the
       samples as :meth:`vtz.Raster.read` does.
@@ -146,6 +147,7 @@ class VtzBackendEntrypoint(BackendEntrypoint):
         "overview",
         "storage_options",
         "mask_and_scale",
+        "cache_bytes",
     )
 
     def open_dataset(  # type: ignore[override]
@@ -156,8 +158,10 @@ class VtzBackendEntrypoint(BackendEntrypoint):
         overview: Optional[int] = None,
         storage_options: Optional[dict] = None,
         mask_and_scale: bool = False,
+        cache_bytes: Optional[int] = None,
     ) -> xr.Dataset:
-        raster = _open(filename_or_obj, **(storage_options or {}))
+        kw = {} if cache_bytes is None else {"cache_bytes": cache_bytes}
+        raster = _open(filename_or_obj, **kw, **(storage_options or {}))
         try:
             ds = open_raster_dataset(raster, overview, mask_and_scale=bool(mask_and_scale))
         except BaseException:
