@@ -364,3 +364,18 @@ def test_a_point_set_is_not_a_raster():
         vtz.open(data)
     with pytest.raises(type(e.value)):
         vtz.decode(data)
+
+
+def test_obstore_reader_is_a_file_like(tiled):
+    """obstore's readers (ReadableFile: seek, read giving its own buffer type) read as any
+    binary file-like."""
+    obstore = pytest.importorskip("obstore")
+    from obstore.store import MemoryStore
+
+    data = tiled["bytes"]
+    store = MemoryStore()
+    obstore.put(store, "dems/t.vtz", data)
+    with vtz.open(obstore.open_reader(store, "dems/t.vtz")) as r:
+        same(r.read(), vtz.decode(data))
+        same(r.read((115, 100, 10, 20)), vtz.decode(data, window=(115, 100, 10, 20)))
+        same(r.read(overview=1), vtz.decode(data, overview=1))
