@@ -10,12 +10,16 @@ use numpy::{
     IntoPyArray, PyArray2, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray,
     PyUntypedArrayMethods,
 };
+use pyo3::exceptions::PyBaseException;
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList, PyTuple, PyType};
+use std::ops::Range;
+use std::sync::{Arc, Mutex, MutexGuard};
+use vtz::source::{COALESCE_GAP, FileSource, MemorySource, coalesce, split};
 use vtz::{
-    DecodeOptions, EncodeOptions, Error, ErrorBound, Georef, Method, Raster, RasterType,
-    SampleType, Scale, SectionChoice, Window,
+    DecodeOptions, Decoder, EncodeOptions, Error, ErrorBound, FileInfo, Georef, Limits, Method,
+    RangeSource, Raster, RasterType, SampleType, Scale, SectionChoice, Window,
 };
 
 /// A vtz error as the Python exception of its cause (the classes live in `vtz._errors`, so
@@ -212,9 +216,11 @@ fn encode_options(
     method: Option<&str>,
     effort: Option<&Bound<'_, PyAny>>,
     threads: usize,
+    tile: Option<u32>,
 ) -> PyResult<EncodeOptions> {
     let mut o = EncodeOptions::default();
     o.effort = parse_effort(py, effort)?;
+    o.tile = tile;
     if let Some(b) = max_error {
         if lossless {
             return Err(invalid(
@@ -287,7 +293,7 @@ fn offset_scale(offset: Option<f64>, scale: Option<f64>) -> Option<(f64, f64)> {
 
 /// Encode a 2-D array; returns the vtz bytes.
 #[pyfunction]
-#[pyo3(signature = (array, max_error=None, lossless=false, nodata=None, method=None, threads=0, effort=None, offset=None, scale=None))]
+#[pyo3(signature = (array, max_error=None, lossless=false, nodata=None, method=None, threads=0, effort=None, offset=None, scale=None, tile=None))]
 #[allow(clippy::too_many_arguments)]
 fn encode<'py>(
     py: Python<'py>,
@@ -300,8 +306,9 @@ fn encode<'py>(
     effort: Option<&Bound<'py, PyAny>>,
     offset: Option<f64>,
     scale: Option<f64>,
+    tile: Option<u32>,
 ) -> PyResult<Bound<'py, PyBytes>> {
-    let opts = encode_options(py, max_error, lossless, method, effort, threads)?;
+    let opts = encode_options(py, max_error, lossless, method, effort, threads, tile)?;
     let raster = raster_from(py, array, nodata, offset_scale(offset, scale))?;
     let bytes = py
         .detach(|| vtz::on_threads(threads, || vtz::encode(&raster, &opts)).and_then(|r| r))
@@ -422,6 +429,9 @@ fn georef_dict<'py>(py: Python<'py>, g: &Georef) -> PyResult<Bound<'py, PyDict>>
     d.set_item("transform", t)?;
     d.set_item("epsg", g.epsg)?;
     d.set_item("wkt", g.wkt.clone())?;
+    // What GDAL's SetFromUserInput takes: the WKT (the file's own, else EPSG's from vtz's
+    // table), else `EPSG:n`, else a PROJ string.
+    d.set_item("crs_input", vtz::formats::crs_user_input(g))?;
     d.set_item(
         "raster_type",
         match g.raster_type {
@@ -438,7 +448,16 @@ fn info<'py>(py: Python<'py>, data: &Bound<'py, PyBytes>) -> PyResult<Bound<'py,
     let bytes = data.as_bytes();
     let mut dec =
         vtz::Decoder::new(std::io::Cursor::new(bytes.to_vec())).map_err(|e| to_py(py, e))?;
-    let fi = dec.info().clone();
+    let d = info_dict(py, dec.info())?;
+    // The bound the file guarantees (0 = lossless), read without decoding.
+    let max_error = py.detach(|| dec.max_error()).map_err(|e| to_py(py, e))?;
+    d.set_item("max_error", max_error)?;
+    Ok(d)
+}
+
+/// A file's [`FileInfo`] as the dict `vtz.info` gives (without `max_error`, which reads a
+/// section of an untiled file).
+fn info_dict<'py>(py: Python<'py>, fi: &FileInfo) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("width", fi.width)?;
     d.set_item("height", fi.height)?;
@@ -452,6 +471,8 @@ fn info<'py>(py: Python<'py>, data: &Bound<'py, PyBytes>) -> PyResult<Bound<'py,
     d.set_item("value_offset", fi.mapping.offset)?;
     d.set_item("value_scale", fi.mapping.scale)?;
     d.set_item("nodata", fi.nodata)?;
+    // As the decoded array holds it: the nodata value, or its code when it holds codes.
+    d.set_item("stored_nodata", fi.nodata.map(|nd| out.stored(nd)))?;
     d.set_item("range", fi.range)?;
     d.set_item("bytes", fi.file_bytes)?;
     let primary = fi.sections.iter().find(|s| s.primary);
@@ -474,9 +495,6 @@ fn info<'py>(py: Python<'py>, data: &Bound<'py, PyBytes>) -> PyResult<Bound<'py,
         sections.append(e)?;
     }
     d.set_item("sections", sections)?;
-    // The bound the file guarantees (0 = lossless), read without decoding.
-    let max_error = py.detach(|| dec.max_error()).map_err(|e| to_py(py, e))?;
-    d.set_item("max_error", max_error)?;
     match &fi.tiles {
         Some(t) => {
             let td = PyDict::new(py);
@@ -484,6 +502,13 @@ fn info<'py>(py: Python<'py>, data: &Bound<'py, PyBytes>) -> PyResult<Bound<'py,
             td.set_item("tile_height", t.tile_height)?;
             td.set_item("cols", t.cols)?;
             td.set_item("rows", t.rows)?;
+            td.set_item("margin", t.margin)?;
+            // Where each tile's block lies in the file, in tile order: (offset, bytes).
+            let blocks = PyList::empty(py);
+            for ti in &t.tiles {
+                blocks.append((ti.offset, ti.bytes))?;
+            }
+            td.set_item("blocks", blocks)?;
             d.set_item("tiles", td)?;
         }
         None => d.set_item("tiles", py.None())?,
@@ -493,6 +518,502 @@ fn info<'py>(py: Python<'py>, data: &Bound<'py, PyBytes>) -> PyResult<Bound<'py,
         None => d.set_item("georef", py.None())?,
     }
     Ok(d)
+}
+
+// ------------------------------------------------------------------ lazy reads (vtz.open)
+
+/// How a Python object reads byte ranges.
+enum PyReads {
+    /// An fsspec filesystem and a path in it: one `fs.cat_ranges(paths, starts, ends)` call
+    /// per read, which fsspec's async filesystems (HTTP, S3, GCS, Azure) issue concurrently.
+    Fsspec { fs: Py<PyAny>, path: Py<PyAny> },
+    /// A binary file-like (`seek` + `read`): one range after another, one read at a time.
+    File { file: Py<PyAny>, lock: Mutex<()> },
+}
+
+/// A [`RangeSource`] over a Python object. The decoder calls it with the GIL released (from
+/// the calling thread or rayon's workers); it attaches to the interpreter only for the
+/// Python calls. Ranges within [`COALESCE_GAP`] of each other are fetched as one.
+struct PySource {
+    reads: PyReads,
+    len: u64,
+    name: String,
+    /// The Python exception behind the last failed read, chained as the cause of the vtz
+    /// error the decode raises.
+    error: Mutex<Option<PyErr>>,
+}
+
+fn locked<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// The bytes of a Python object a read gave (`bytes`, or anything `bytes()` takes).
+fn bytes_of(py: Python<'_>, b: &Bound<'_, PyAny>) -> PyResult<Vec<u8>> {
+    if let Ok(b) = b.cast::<PyBytes>() {
+        return Ok(b.as_bytes().to_vec());
+    }
+    if b.is_none() {
+        return Err(PyErr::new::<pyo3::exceptions::PyOSError, _>(
+            "read() gave None (a non-blocking file with no data ready)",
+        ));
+    }
+    let b = py.import("builtins")?.getattr("bytes")?.call1((b,))?;
+    Ok(b.cast::<PyBytes>()
+        .map_err(PyErr::from)?
+        .as_bytes()
+        .to_vec())
+}
+
+/// A Python exception in one line: `TypeName: message`.
+fn py_error_line(py: Python<'_>, e: &PyErr) -> String {
+    let ty = e
+        .get_type(py)
+        .name()
+        .map_or_else(|_| "Exception".to_string(), |n| n.to_string());
+    let msg = e
+        .value(py)
+        .str()
+        .map_or_else(|_| String::new(), |s| s.to_string_lossy().into_owned());
+    let msg = msg.split_whitespace().collect::<Vec<_>>().join(" ");
+    if msg.is_empty() {
+        ty
+    } else {
+        format!("{ty}: {msg}")
+    }
+}
+
+impl PySource {
+    fn fetch(&self, py: Python<'_>, ranges: &[Range<u64>]) -> PyResult<Vec<Vec<u8>>> {
+        match &self.reads {
+            PyReads::Fsspec { fs, path } => {
+                let paths = PyList::new(py, ranges.iter().map(|_| path.bind(py)))?;
+                let starts = PyList::new(py, ranges.iter().map(|r| r.start))?;
+                let ends = PyList::new(py, ranges.iter().map(|r| r.end))?;
+                let kw = PyDict::new(py);
+                kw.set_item("on_error", "raise")?;
+                let got =
+                    fs.bind(py)
+                        .call_method("cat_ranges", (paths, starts, ends), Some(&kw))?;
+                let mut out = Vec::with_capacity(ranges.len());
+                for item in got.try_iter()? {
+                    let item = item?;
+                    // fsspec returns an exception in place of bytes with on_error="return".
+                    if item.is_instance_of::<PyBaseException>() {
+                        return Err(PyErr::from_value(item));
+                    }
+                    out.push(bytes_of(py, &item)?);
+                }
+                Ok(out)
+            }
+            PyReads::File { file, .. } => {
+                let f = file.bind(py);
+                ranges
+                    .iter()
+                    .map(|r| {
+                        f.call_method1("seek", (r.start,))?;
+                        let want = (r.end - r.start) as usize;
+                        let mut buf = Vec::with_capacity(want);
+                        // A raw file may give fewer bytes than asked: read on to the end.
+                        while buf.len() < want {
+                            let got = bytes_of(py, &f.call_method1("read", (want - buf.len(),))?)?;
+                            if got.is_empty() {
+                                break;
+                            }
+                            buf.extend_from_slice(&got);
+                        }
+                        Ok(buf)
+                    })
+                    .collect()
+            }
+        }
+    }
+}
+
+impl RangeSource for PySource {
+    fn len(&self) -> vtz::Result<u64> {
+        Ok(self.len)
+    }
+
+    fn read_ranges(&self, ranges: &[Range<u64>]) -> vtz::Result<Vec<Vec<u8>>> {
+        if let Some(r) = ranges.iter().find(|r| r.start > r.end || r.end > self.len) {
+            return Err(Error::corrupt(format!(
+                "{} is truncated: bytes {}..{} asked of a {}-byte file",
+                self.name, r.start, r.end, self.len
+            )));
+        }
+        let (merged, owner) = coalesce(ranges, COALESCE_GAP);
+        if merged.is_empty() {
+            return Ok(ranges.iter().map(|_| Vec::new()).collect());
+        }
+        // A file-like's seek + read pairs must not interleave; the lock is taken before the
+        // GIL, so a thread waiting for it never holds the GIL.
+        let _one_at_a_time = match &self.reads {
+            PyReads::File { lock, .. } => Some(locked(lock)),
+            PyReads::Fsspec { .. } => None,
+        };
+        let got = Python::attach(|py| {
+            self.fetch(py, &merged).map_err(|e| {
+                let line = py_error_line(py, &e);
+                *locked(&self.error) = Some(e);
+                line
+            })
+        })
+        .map_err(|line| {
+            Error::io(
+                format!("reading {}", self.name),
+                std::io::Error::other(line),
+            )
+        })?;
+        if got.len() != merged.len() {
+            return Err(Error::io(
+                format!("reading {}", self.name),
+                std::io::Error::other(format!(
+                    "cat_ranges gave {} ranges for {}",
+                    got.len(),
+                    merged.len()
+                )),
+            ));
+        }
+        for (r, b) in merged.iter().zip(&got) {
+            if b.len() as u64 != r.end - r.start {
+                return Err(Error::io(
+                    format!("reading {}", self.name),
+                    std::io::Error::new(
+                        std::io::ErrorKind::UnexpectedEof,
+                        format!(
+                            "bytes {}..{} gave {} bytes, not {} (did the object change?)",
+                            r.start,
+                            r.end,
+                            b.len(),
+                            r.end - r.start
+                        ),
+                    ),
+                ));
+            }
+        }
+        Ok(split(ranges, &merged, &owner, &got))
+    }
+
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+}
+
+/// A range read on opening and its bytes.
+type KeptRead = (Range<u64>, Vec<u8>);
+
+/// Recently read ranges (tile blocks), up to `cap` bytes, the oldest dropped first.
+struct BlockCache {
+    cap: u64,
+    bytes: u64,
+    map: std::collections::HashMap<(u64, u64), Arc<Vec<u8>>>,
+    order: std::collections::VecDeque<(u64, u64)>,
+}
+
+impl BlockCache {
+    fn get(&self, r: &Range<u64>) -> Option<Vec<u8>> {
+        self.map.get(&(r.start, r.end)).map(|b| b.as_ref().clone())
+    }
+
+    fn put(&mut self, r: &Range<u64>, b: &[u8]) {
+        let key = (r.start, r.end);
+        let n = b.len() as u64;
+        if n == 0 || n > self.cap || self.map.contains_key(&key) {
+            return;
+        }
+        self.map.insert(key, Arc::new(b.to_vec()));
+        self.order.push_back(key);
+        self.bytes += n;
+        while self.bytes > self.cap {
+            let Some(old) = self.order.pop_front() else {
+                break;
+            };
+            if let Some(b) = self.map.remove(&old) {
+                self.bytes -= b.len() as u64;
+            }
+        }
+    }
+}
+
+/// A source that keeps what its file's opening read (the first 64 KB; a version-2 file's
+/// tile index), so the decoders opened later for concurrent reads open without a request,
+/// and the last `cache_bytes` of blocks read: a tile's window reads its neighbours' blocks
+/// too (it blends across their margins), so the reads of neighbouring windows (Dask's
+/// tasks, one per tile) fetch each block about once instead of up to nine times.
+struct KeepOpening {
+    inner: Arc<dyn RangeSource>,
+    /// True while the first decoder opens.
+    recording: std::sync::atomic::AtomicBool,
+    kept: Mutex<Vec<KeptRead>>,
+    cache: Mutex<BlockCache>,
+}
+
+impl KeepOpening {
+    fn new(inner: Arc<dyn RangeSource>, cache_bytes: u64) -> KeepOpening {
+        KeepOpening {
+            inner,
+            recording: std::sync::atomic::AtomicBool::new(true),
+            kept: Mutex::new(Vec::new()),
+            cache: Mutex::new(BlockCache {
+                cap: cache_bytes,
+                bytes: 0,
+                map: Default::default(),
+                order: Default::default(),
+            }),
+        }
+    }
+
+    fn opened(&self) {
+        self.recording
+            .store(false, std::sync::atomic::Ordering::Release);
+    }
+
+    /// The bytes of `r` from what was kept, if one kept read holds it.
+    fn kept_bytes(&self, r: &Range<u64>) -> Option<Vec<u8>> {
+        locked(&self.kept).iter().find_map(|(k, b)| {
+            (k.start <= r.start && r.end <= k.end && r.start <= r.end)
+                .then(|| b[(r.start - k.start) as usize..(r.end - k.start) as usize].to_vec())
+        })
+    }
+}
+
+impl RangeSource for KeepOpening {
+    fn len(&self) -> vtz::Result<u64> {
+        self.inner.len()
+    }
+
+    fn read_ranges(&self, ranges: &[Range<u64>]) -> vtz::Result<Vec<Vec<u8>>> {
+        let mut out: Vec<Option<Vec<u8>>> = ranges
+            .iter()
+            .map(|r| self.kept_bytes(r).or_else(|| locked(&self.cache).get(r)))
+            .collect();
+        let missing: Vec<usize> = (0..ranges.len()).filter(|&i| out[i].is_none()).collect();
+        if !missing.is_empty() {
+            let asked: Vec<Range<u64>> = missing.iter().map(|&i| ranges[i].clone()).collect();
+            let got = self.inner.read_ranges(&asked)?;
+            if got.len() != asked.len() {
+                return Err(Error::corrupt(format!(
+                    "{}: a read of {} ranges gave {}",
+                    self.name(),
+                    asked.len(),
+                    got.len()
+                )));
+            }
+            let recording = self.recording.load(std::sync::atomic::Ordering::Acquire);
+            for ((i, r), b) in missing.into_iter().zip(&asked).zip(got) {
+                if recording {
+                    locked(&self.kept).push((r.clone(), b.clone()));
+                } else {
+                    locked(&self.cache).put(r, &b);
+                }
+                out[i] = Some(b);
+            }
+        }
+        Ok(out.into_iter().flatten().collect())
+    }
+
+    fn name(&self) -> String {
+        self.inner.name()
+    }
+}
+
+/// An opened file: its source, what it holds, and decoders over the source (one per
+/// concurrent read: a `Decoder` decodes one request at a time; those opened after the first
+/// take the header and index from what the first read).
+struct Opened {
+    src: Arc<dyn RangeSource>,
+    py_src: Option<Arc<PySource>>,
+    info: FileInfo,
+    idle: Mutex<Vec<Decoder>>,
+}
+
+/// A `.vtz` file opened for lazy reads (`vtz.open`): the header and index on opening, then
+/// only the tile blocks each read needs. Thread-safe: reads from several threads decode side
+/// by side.
+#[pyclass(frozen, module = "vtz._vtz")]
+struct Reader {
+    opened: Mutex<Option<Arc<Opened>>>,
+}
+
+impl Reader {
+    /// Open a decoder over `src` (the GIL released); `context` names a local file in the
+    /// error, as `Decoder::open_path` does.
+    fn open(
+        py: Python<'_>,
+        src: Arc<dyn RangeSource>,
+        py_src: Option<Arc<PySource>>,
+        context: Option<&std::path::Path>,
+        cache_bytes: u64,
+    ) -> PyResult<Reader> {
+        let keep = Arc::new(KeepOpening::new(src, cache_bytes));
+        let s: Arc<dyn RangeSource> = keep.clone();
+        let dec = py
+            .detach(|| Decoder::open_with_limits(s, Limits::default()))
+            .map_err(|e| match context {
+                Some(p) => e.context(p.display()),
+                None => e,
+            })
+            .map_err(|e| source_error(py, py_src.as_deref(), e))?;
+        keep.opened();
+        let src: Arc<dyn RangeSource> = keep;
+        let info = dec.info().clone();
+        Ok(Reader {
+            opened: Mutex::new(Some(Arc::new(Opened {
+                src,
+                py_src,
+                info,
+                idle: Mutex::new(vec![dec]),
+            }))),
+        })
+    }
+
+    fn get(&self, py: Python<'_>) -> PyResult<Arc<Opened>> {
+        locked(&self.opened)
+            .clone()
+            .ok_or_else(|| invalid(py, "the vtz file is closed"))
+    }
+}
+
+/// A vtz error as its Python exception, with the Python exception a read raised (if it did)
+/// as its `__cause__`.
+fn source_error(py: Python<'_>, src: Option<&PySource>, e: Error) -> PyErr {
+    let is_io = matches!(e, Error::Io { .. });
+    let err = to_py(py, e);
+    if is_io && let Some(cause) = src.and_then(|s| locked(&s.error).take()) {
+        err.set_cause(py, Some(cause));
+    }
+    err
+}
+
+#[pymethods]
+impl Reader {
+    /// A local file (positioned reads).
+    #[staticmethod]
+    fn from_path(py: Python<'_>, path: std::path::PathBuf) -> PyResult<Reader> {
+        let src: Arc<dyn RangeSource> =
+            Arc::new(FileSource::open(&path).map_err(|e| to_py(py, e))?);
+        Reader::open(py, src, None, Some(&path), 0)
+    }
+
+    /// Bytes in memory.
+    #[staticmethod]
+    fn from_bytes(py: Python<'_>, data: &Bound<'_, PyBytes>) -> PyResult<Reader> {
+        let src: Arc<dyn RangeSource> = Arc::new(MemorySource::new(data.as_bytes().to_vec()));
+        Reader::open(py, src, None, None, 0)
+    }
+
+    /// An fsspec filesystem and a path in it (`size`: the object's length in bytes;
+    /// `cache_bytes`: how many bytes of recently read blocks to keep).
+    #[staticmethod]
+    #[pyo3(signature = (fs, path, size, name, cache_bytes=0))]
+    fn from_fsspec(
+        py: Python<'_>,
+        fs: Py<PyAny>,
+        path: Py<PyAny>,
+        size: u64,
+        name: String,
+        cache_bytes: u64,
+    ) -> PyResult<Reader> {
+        let src = Arc::new(PySource {
+            reads: PyReads::Fsspec { fs, path },
+            len: size,
+            name,
+            error: Mutex::new(None),
+        });
+        Reader::open(py, src.clone(), Some(src), None, cache_bytes)
+    }
+
+    /// A binary file-like with `seek` and `read` (`size`: its length in bytes;
+    /// `cache_bytes`: how many bytes of recently read blocks to keep).
+    #[staticmethod]
+    #[pyo3(signature = (file, size, name, cache_bytes=0))]
+    fn from_file(
+        py: Python<'_>,
+        file: Py<PyAny>,
+        size: u64,
+        name: String,
+        cache_bytes: u64,
+    ) -> PyResult<Reader> {
+        let src = Arc::new(PySource {
+            reads: PyReads::File {
+                file,
+                lock: Mutex::new(()),
+            },
+            len: size,
+            name,
+            error: Mutex::new(None),
+        });
+        Reader::open(py, src.clone(), Some(src), None, cache_bytes)
+    }
+
+    /// What the file holds (`vtz.info`'s dict, without `max_error`).
+    fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        info_dict(py, &self.get(py)?.info)
+    }
+
+    /// The bound every valid sample is within (0 = lossless): an untiled file reads its
+    /// primary section's header for it.
+    fn max_error(&self, py: Python<'_>) -> PyResult<f64> {
+        let o = self.get(py)?;
+        let res = py.detach(|| {
+            let mut dec = o.take()?;
+            let r = dec.max_error();
+            o.give_back(dec, &r);
+            r
+        });
+        res.map_err(|e| source_error(py, o.py_src.as_deref(), e))
+    }
+
+    /// Decode a window `(x, y, width, height)` (of overview K's samples when `overview` is
+    /// given) into a numpy array, as `vtz.decode` gives it.
+    #[pyo3(signature = (window=None, overview=None, threads=0))]
+    fn read<'py>(
+        &self,
+        py: Python<'py>,
+        window: Option<(usize, usize, usize, usize)>,
+        overview: Option<u32>,
+        threads: usize,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let o = self.get(py)?;
+        let opts = decode_options(py, window, None, overview, threads)?;
+        let res = py.detach(|| {
+            let mut dec = o.take()?;
+            let r = vtz::on_threads(threads, || dec.options(opts).decode()).and_then(|r| r);
+            o.give_back(dec, &r);
+            r
+        });
+        let r = res.map_err(|e| source_error(py, o.py_src.as_deref(), e))?;
+        to_array(py, r)
+    }
+
+    /// Let go of the source (a read after this raises).
+    fn close(&self) {
+        locked(&self.opened).take();
+    }
+
+    /// Whether `close` was called.
+    #[getter]
+    fn closed(&self) -> bool {
+        locked(&self.opened).is_none()
+    }
+}
+
+impl Opened {
+    /// An idle decoder, or a new one over the same source.
+    fn take(&self) -> vtz::Result<Decoder> {
+        match locked(&self.idle).pop() {
+            Some(d) => Ok(d),
+            None => Decoder::open_with_limits(self.src.clone(), Limits::default()),
+        }
+    }
+
+    /// Back to the idle ones after a request that succeeded (one that failed may have left
+    /// it anywhere: it is dropped).
+    fn give_back<T>(&self, dec: Decoder, r: &vtz::Result<T>) {
+        if r.is_ok() {
+            locked(&self.idle).push(dec);
+        }
+    }
 }
 
 /// Read any raster file vtz reads; returns `(array, georef dict or None, nodata)`.
@@ -525,7 +1046,7 @@ fn read<'py>(py: Python<'py>, path: std::path::PathBuf) -> PyResult<Bound<'py, P
 /// Write an array to a raster file (the format from the extension; `.vtz` is encoded with
 /// the bound given). `georef`: `(transform 6-tuple, epsg or None, wkt or None)`.
 #[pyfunction]
-#[pyo3(signature = (path, array, nodata=None, transform=None, epsg=None, wkt=None, max_error=None, lossless=false, method=None, force=true, threads=0, effort=None, offset=None, scale=None))]
+#[pyo3(signature = (path, array, nodata=None, transform=None, epsg=None, wkt=None, max_error=None, lossless=false, method=None, force=true, threads=0, effort=None, offset=None, scale=None, tile=None))]
 #[allow(clippy::too_many_arguments)]
 fn write<'py>(
     py: Python<'py>,
@@ -543,8 +1064,9 @@ fn write<'py>(
     effort: Option<&Bound<'py, PyAny>>,
     offset: Option<f64>,
     scale: Option<f64>,
+    tile: Option<u32>,
 ) -> PyResult<()> {
-    let opts = encode_options(py, max_error, lossless, method, effort, threads)?;
+    let opts = encode_options(py, max_error, lossless, method, effort, threads, tile)?;
     let mut raster = raster_from(py, array, nodata, offset_scale(offset, scale))?;
     if let Some((a, b, c, d, e, f)) = transform {
         if b != 0.0 || d != 0.0 {
@@ -606,6 +1128,7 @@ fn _vtz(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(info, m)?)?;
     m.add_function(wrap_pyfunction!(read, m)?)?;
     m.add_function(wrap_pyfunction!(write, m)?)?;
+    m.add_class::<Reader>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -449,6 +449,12 @@ impl Decoder {
         let mut reader = Source::open(src)?;
         let file_bytes = reader.len();
         let version = peek_version(&mut reader)?;
+        if version == crate::container::points::VERSION_POINTS {
+            return Err(Error::unsupported(
+                "this is a point set (container version 3), not a raster: read it with \
+                 vtz::decode_points (the CLI decodes either)",
+            ));
+        }
         let tiled = version == VERSION_TILED || version == VERSION_CLOUD;
         let rd = if tiled {
             Opened::Tiled(tiles::open(reader, limits)?)

@@ -12,6 +12,10 @@ checked by the encoder on exactly what the decoder produces.
 
 The codecs for chunked stores are :class:`vtz.numcodecs.Vtz` (numcodecs, id ``"vtz"``) and
 :class:`vtz.zarr.VtzCodec` (a Zarr v3 array-to-bytes codec, name ``"vtz"``).
+
+:func:`vtz.open` reads a ``.vtz`` file lazily (a path, bytes, a URL through fsspec, a file-like),
+window by window; ``xarray.open_dataset(path, engine="vtz")`` (:mod:`vtz.xarray`) gives it to
+xarray and Dask, one chunk per tile.
 """
 
 from __future__ import annotations
@@ -32,13 +36,24 @@ from ._errors import (
     VtzIOError,
 )
 from . import _errors, _vtz
+from ._raster import Raster, open  # noqa: A004 - vtz.open, as rasterio.open
 
 __version__ = _vtz.__version__
 
 #: The dtypes vtz codes (and gives back on decode).
 DTYPES = ("uint8", "int16", "uint16", "int32", "float32", "float64")
 
-__all__ = ["encode", "decode", "info", "read", "write", "DTYPES", *_errors.__all__]
+__all__ = [
+    "encode",
+    "decode",
+    "info",
+    "read",
+    "write",
+    "open",
+    "Raster",
+    "DTYPES",
+    *_errors.__all__,
+]
 
 
 def _check_array(array: Any) -> np.ndarray:
@@ -107,6 +122,7 @@ def encode(
     effort: Optional[int] = None,
     offset: Optional[float] = None,
     scale: Optional[float] = None,
+    tile: Optional[int] = None,
 ) -> bytes:
     """Encode a 2-D array as a vtz stream.
 
@@ -138,6 +154,11 @@ def encode(
         offset and scale, e.g. decimetres as int16 with ``scale=0.1``); ``nodata`` is then a
         code too. The stream keeps the mapping and ``max_error`` bounds the values (metres),
         as ``vtz encode`` does for a GeoTIFF with a GDAL scale. Integer dtypes only.
+    tile : int, optional
+        Tile side in samples (the CLI's ``--tile``; at least 16): a raster larger than it is
+        coded as independent tiles (container version 2) that :func:`vtz.open` reads one by
+        one. ``None``: tiles of 4096 for rasters of more than 4096**2 samples, else untiled;
+        ``0``: never tiled.
 
     Returns
     -------
@@ -159,7 +180,16 @@ def encode(
         effort=effort,
         offset=_opt_float(offset, "offset"),
         scale=_opt_float(scale, "scale"),
+        tile=_tile(tile),
     )
+
+
+def _tile(tile: Any) -> Optional[int]:
+    if tile is None:
+        return None
+    if isinstance(tile, bool) or not isinstance(tile, (int, np.integer)) or tile < 0:
+        raise InvalidArgumentError(f"tile must be an int >= 0 (0: untiled), not {tile!r}")
+    return int(tile)
 
 
 def _opt_float(v: Any, what: str) -> Optional[float]:
@@ -368,6 +398,7 @@ def write(
     overwrite: bool = True,
     threads: int = 0,
     effort: Optional[int] = None,
+    tile: Optional[int] = None,
 ) -> None:
     """Write a 2-D array to a raster file; the format comes from the extension.
 
@@ -375,8 +406,8 @@ def write(
     (``.tif``, ``.png``, ``.asc``, ``.exr``, ``.f32``) are written exactly. The profile's
     ``crs``, ``transform`` and ``nodata`` (a rasterio profile works as it is) are kept. The
     file is written to a temporary name and renamed into place; ``overwrite=False`` refuses
-    an existing file. ``method`` and ``effort`` are those of :func:`encode`, and so are the
-    profile's ``offset`` and ``scale`` (integer codes; as :func:`read` gives them).
+    an existing file. ``method``, ``effort`` and ``tile`` are those of :func:`encode`, and so
+    are the profile's ``offset`` and ``scale`` (integer codes; as :func:`read` gives them).
     """
     a = _check_array(array)
     profile = dict(profile or {})
@@ -396,4 +427,5 @@ def write(
         effort=effort,
         offset=_opt_float(profile.get("offset"), "offset"),
         scale=_opt_float(profile.get("scale"), "scale"),
+        tile=_tile(tile),
     )

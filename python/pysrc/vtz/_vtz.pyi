@@ -1,6 +1,6 @@
 """Type stubs of the native module (the public API is in ``vtz``; see its docstrings)."""
 
-from typing import Optional, Tuple, Union
+from typing import Any, Optional, Tuple, Union
 
 import numpy as np
 
@@ -14,11 +14,15 @@ def encode(
     method: Optional[str] = ...,
     threads: int = ...,
     effort: Optional[int] = ...,
+    offset: Optional[float] = ...,
+    scale: Optional[float] = ...,
+    tile: Optional[int] = ...,
 ) -> bytes: ...
 def decode(
     data: bytes,
     window: Optional[Tuple[int, int, int, int]] = ...,
     scale: Optional[str] = ...,
+    overview: Optional[int] = ...,
     threads: int = ...,
 ) -> np.ndarray: ...
 def info(data: bytes) -> dict: ...
@@ -36,4 +40,32 @@ def write(
     force: bool = ...,
     threads: int = ...,
     effort: Optional[int] = ...,
+    offset: Optional[float] = ...,
+    scale: Optional[float] = ...,
+    tile: Optional[int] = ...,
 ) -> None: ...
+
+class Reader:
+    """A .vtz file opened for lazy reads (vtz.open wraps it in vtz.Raster)."""
+
+    @staticmethod
+    def from_path(path: str) -> Reader: ...
+    @staticmethod
+    def from_bytes(data: bytes) -> Reader: ...
+    @staticmethod
+    def from_fsspec(
+        fs: Any, path: Any, size: int, name: str, cache_bytes: int = ...
+    ) -> Reader: ...
+    @staticmethod
+    def from_file(file: Any, size: int, name: str, cache_bytes: int = ...) -> Reader: ...
+    def info(self) -> dict: ...
+    def max_error(self) -> float: ...
+    def read(
+        self,
+        window: Optional[Tuple[int, int, int, int]] = ...,
+        overview: Optional[int] = ...,
+        threads: int = ...,
+    ) -> np.ndarray: ...
+    def close(self) -> None: ...
+    @property
+    def closed(self) -> bool: ...
