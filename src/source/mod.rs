@@ -374,7 +374,7 @@ mod tests {
     fn a_range_past_the_end_is_a_truncated_file_not_a_short_read() {
         let s = MemorySource::new(vec![1u8; 10]);
         assert!(matches!(
-            s.read_ranges(&[5..11]),
+            s.read_ranges(std::slice::from_ref(&(5..11))),
             Err(Error::Corrupt { .. })
         ));
         let src = Source::open(Arc::new(s)).unwrap();

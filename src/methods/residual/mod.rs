@@ -621,7 +621,7 @@ fn decode_marked(
     flat: Option<&Flat>,
     win: Window,
     stop: u32,
-    mut marks: Option<&mut Vec<usize>>,
+    marks: Option<&mut Vec<usize>>,
 ) -> Result<Vec<f64>> {
     let mut rd = ByteReader::new(payload, "residual section");
     let Head {
@@ -726,7 +726,7 @@ fn decode_marked(
             .chunks_exact(fast::NW)
             .map(|c| c.try_into().expect("NW weights"))
             .collect();
-        fast::decode(&mut rd, &p, f.levels, f.tighten, &wts, max_bin, win.y..win.y + win.height, stop, marks.as_deref_mut())?
+        fast::decode(&mut rd, &p, f.levels, f.tighten, &wts, max_bin, win.y..win.y + win.height, stop, marks)?
     } else {
     // Codings 0 and 1 are one range-coded stream: every sample is decoded, whatever the
     // window.
@@ -762,7 +762,7 @@ fn decode_marked(
         // read nothing past the end of what it was given (a version-4 tile's prefix).
         c.dec.check_in_bounds()?;
     }
-    if let Some(m) = marks.as_deref_mut() {
+    if let Some(m) = marks {
         m.extend(c.marks.iter().map(|&e| stream_at + e));
     }
     st.rec
