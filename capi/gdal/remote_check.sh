@@ -8,12 +8,12 @@
 #   capi/gdal/remote_check.sh VTZ_CLI PLUGIN_DIR
 #
 # Needs nginx (Debian's nginx-light; .ci/run installs it), gdal-bin and python3-gdal. The
-# assertions hold for any container version. For version 4 (header and tile index in the
-# first 64 KB, a tile's overview K a prefix of its block) and a library that reads a band's
-# tile blocks in one read_ranges call, tighten them in req.py: check_open to the HEAD and
-# one 64 KB GET (GDAL_INGESTED_BYTES_AT_OPEN=65536) or two (GDAL's first 16 KB chunk, then
-# the rest), no index; check_window to at most 3 requests and 1.5x the touched tiles'
-# bytes; the overview reads (each_once) to the touched tiles' prefixes for their level.
+# file is version 4 (header and tile index in the first 64 KB, a tile's overview K a
+# prefix of its block): opening is GDAL's HEAD and the first 64 KB (two GETs: its first
+# 16 KB chunk, then the rest; one with GDAL_INGESTED_BYTES_AT_OPEN=65536), no index read;
+# a full-resolution window is one request per row of tiles it touches (the library reads a
+# band's tile blocks in one read_ranges call; GDAL merges consecutive ranges) and at most
+# 1.5x the touched tiles' bytes; overview reads fetch at most the touched tiles' bytes.
 set -euo pipefail
 
 if [ $# -ne 2 ]; then
@@ -168,6 +168,8 @@ def check_open(log, info_json, size):
     """Opening fetches the first 64 KB (in GDAL's 16 KB chunks) and the index, never more."""
     reqs = requests(log)
     idx = index_bytes(info_json, size)
+    # Version 4 (what vtz writes): the header and the index are in the first 64 KB, so no
+    # read of an index at the end (idx = 0): GDAL's HEAD, its first chunk, the rest.
     allowed = HEAD + CHUNK + (idx + 2 * CHUNK if idx else 0)
     n_allowed = 1 + 2 + (1 if idx else 0)  # HEAD, GDAL's first chunk, the rest of 64 KB, the index
     got = sum(r[4] for r in reqs)
@@ -197,6 +199,14 @@ def check_window(log, open_log, info_json, size, x, y, w, h, level=0, what="wind
     if got > need + 2 * CHUNK or len(reqs) > len(t):
         fail(f"{log}: the {what} took {summary(reqs)} beyond the open; its {len(t)} tiles hold {need} bytes "
              f"(at most {len(t)} requests and {need + 2 * CHUNK} bytes)")
+    if level == 0 and what.startswith("window"):
+        # Issue 36's target: the tiles of a row of tiles lie back to back and come in one
+        # request (one read_ranges call per band, GDAL merging consecutive ranges), and
+        # the bytes are at most 1.5x the touched tiles' (here: exactly theirs).
+        rows = len({e["y"] for e in t})
+        if len(reqs) > rows or got > 1.5 * need:
+            fail(f"{log}: the {what} took {summary(reqs)} beyond the open for {rows} rows of tiles "
+                 f"holding {need} bytes (at most {rows} requests and 1.5x the bytes)")
     total = sum(r[4] for r in requests(log))
     if total >= size // 2:
         fail(f"{log}: {total} bytes of a {size}-byte file")

@@ -82,8 +82,9 @@ typedef struct VtzReader {
   uint64_t length;
   // Fill `buffers[i]` with exactly `lengths[i]` bytes from offset `offsets[i]`, for i in
   // 0..n (n ≥ 1; the ranges are ascending, none empty, none overlapping, each inside
-  // `length`; ranges closer than 4 KB are given as one, so a caller may issue them as
-  // they come, concurrently or as one multi-range request). Returns 0 when every buffer
+  // `length`; overlapping ranges are given as one, adjacent ones (the blocks of tiles
+  // side by side) apart, so a caller may cache each and issue them as they come,
+  // concurrently or merged into one request). Returns 0 when every buffer
   // is filled, anything else on failure (a short read included); then it may write a
   // NUL-terminated reason of at most `message_cap` bytes, NUL included, into `message`
   // (it holds an empty string on entry), and the call into vtz returns `VTZ_ERR_IO` with

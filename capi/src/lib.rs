@@ -440,8 +440,9 @@ pub struct VtzReader {
     pub length: u64,
     /// Fill `buffers[i]` with exactly `lengths[i]` bytes from offset `offsets[i]`, for i in
     /// 0..n (n ≥ 1; the ranges are ascending, none empty, none overlapping, each inside
-    /// `length`; ranges closer than 4 KB are given as one, so a caller may issue them as
-    /// they come, concurrently or as one multi-range request). Returns 0 when every buffer
+    /// `length`; overlapping ranges are given as one, adjacent ones (the blocks of tiles
+    /// side by side) apart, so a caller may cache each and issue them as they come,
+    /// concurrently or merged into one request). Returns 0 when every buffer
     /// is filled, anything else on failure (a short read included); then it may write a
     /// NUL-terminated reason of at most `message_cap` bytes, NUL included, into `message`
     /// (it holds an empty string on entry), and the call into vtz returns `VTZ_ERR_IO` with
@@ -520,8 +521,10 @@ impl vtz::RangeSource for CallbackSource {
                 )));
             }
         }
-        // Ascending, merged ranges for the callback; empty ones need no read.
-        let (merged, owner) = vtz::source::coalesce(ranges, vtz::source::COALESCE_GAP);
+        // Ascending ranges for the callback, overlapping ones merged and adjacent ones
+        // (tile blocks side by side) kept apart, so a caller caches each block alone and
+        // its transport merges consecutive ranges itself; empty ones need no read.
+        let (merged, owner) = vtz::source::disjoint(ranges);
         let wanted: Vec<usize> = (0..merged.len())
             .filter(|&i| merged[i].end > merged[i].start)
             .collect();

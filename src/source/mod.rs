@@ -65,6 +65,25 @@ pub fn coalesce(ranges: &[Range<u64>], gap: u64) -> (Vec<Range<u64>>, Vec<usize>
     (merged, owner)
 }
 
+/// Ranges that overlap merged, adjacent ones kept apart (ascending): for a reader with a
+/// cache of its own whose transport merges consecutive ranges itself (GDAL's /vsicurl/),
+/// so each tile block stays an entry of its own. Same shape as [`coalesce`].
+pub fn disjoint(ranges: &[Range<u64>]) -> (Vec<Range<u64>>, Vec<usize>) {
+    let mut order: Vec<usize> = (0..ranges.len()).collect();
+    order.sort_by_key(|&i| (ranges[i].start, ranges[i].end));
+    let mut merged: Vec<Range<u64>> = Vec::new();
+    let mut owner = vec![0usize; ranges.len()];
+    for i in order {
+        let r = &ranges[i];
+        match merged.last_mut() {
+            Some(m) if r.start < m.end || *m == *r => m.end = m.end.max(r.end),
+            _ => merged.push(r.clone()),
+        }
+        owner[i] = merged.len() - 1;
+    }
+    (merged, owner)
+}
+
 /// The bytes of `ranges` cut out of the merged reads `got` (as [`coalesce`] planned them).
 pub fn split(
     ranges: &[Range<u64>],
