@@ -5,6 +5,9 @@
 //! index first (one read of [`HEAD_BYTES`]), then the blocks of the tiles a window touches,
 //! all of them in one call that a remote source issues concurrently.
 
+#[cfg(feature = "remote")]
+pub mod remote;
+
 use crate::error::{Error, Result};
 use std::io::{Read, Seek, SeekFrom};
 use std::ops::Range;
@@ -20,6 +23,17 @@ pub const HEAD_BYTES: u64 = 64 * 1024;
 /// Ranges closer than this are fetched as one (the bytes between are read and dropped):
 /// a request costs a round trip, a few KB cost less.
 pub const COALESCE_GAP: u64 = 16 * 1024;
+
+/// Whether `s` is a URL a remote source reads (`http://`, `https://` or `s3://`, in any
+/// case) rather than a local path. The CLI opens such inputs with `remote::open_url`
+/// (feature `remote`).
+pub fn is_url(s: &str) -> bool {
+    s.split_once("://").is_some_and(|(scheme, _)| {
+        ["http", "https", "s3"]
+            .iter()
+            .any(|k| scheme.eq_ignore_ascii_case(k))
+    })
+}
 
 /// A source of bytes that reads ranges: a local file, memory, an object on a server.
 ///
@@ -303,7 +317,10 @@ impl Source {
     }
     /// The bytes `start..end`.
     pub fn read_at(&self, r: Range<u64>) -> Result<Vec<u8>> {
-        Ok(self.read_ranges(std::slice::from_ref(&r))?.pop().unwrap_or_default())
+        Ok(self
+            .read_ranges(std::slice::from_ref(&r))?
+            .pop()
+            .unwrap_or_default())
     }
 }
 
@@ -358,9 +375,28 @@ mod tests {
     }
 
     #[test]
+    fn urls_are_told_from_paths() {
+        for u in ["https://h/a.vtz", "HTTP://h/a.vtz", "s3://b/k.vtz"] {
+            assert!(is_url(u), "{u}");
+        }
+        for p in [
+            "a.vtz",
+            "/tmp/s3/a.vtz",
+            "C:\\a.vtz",
+            "file://a.vtz",
+            "s3:/b/k",
+        ] {
+            assert!(!is_url(p), "{p}");
+        }
+    }
+
+    #[test]
     fn a_range_past_the_end_is_a_truncated_file_not_a_short_read() {
         let s = MemorySource::new(vec![1u8; 10]);
-        assert!(matches!(s.read_ranges(&[5..11]), Err(Error::Corrupt { .. })));
+        assert!(matches!(
+            s.read_ranges(&[5..11]),
+            Err(Error::Corrupt { .. })
+        ));
         let src = Source::open(Arc::new(s)).unwrap();
         assert_eq!(src.read_at(2..4).unwrap(), vec![1, 1]);
     }
