@@ -875,6 +875,13 @@ fn s3_reads_uploads_and_errors() {
         0,
         "a staged file was left"
     );
+    // A failure after the multipart upload began (the local "file" is a directory, which
+    // opens but cannot be read): the upload is aborted, no object appears.
+    let e = vtz::source::remote::upload(&tmp, "s3://vtz-test/broken.vtz", &opts, &|_| ())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("reading"), "{e}");
+    assert_eq!(s3.get("/vtz-test/broken.vtz").0, 404);
     // No multipart upload was left behind.
     let (status, list) = s3.get("/vtz-test?uploads");
     assert_eq!(status, 200);
@@ -896,5 +903,207 @@ fn s3_reads_uploads_and_errors() {
         &vtz_cmd(&["encode", &corpus, "-o", url], &env),
         1,
         &["access denied (HTTP 403", url],
+    );
+}
+
+/// A server of `bytes` with byte ranges that answers each request after `delay`, counting
+/// the most requests it held at once.
+fn slow_range_server(bytes: Vec<u8>, delay: Duration) -> (u16, Arc<Mutex<(usize, usize)>>) {
+    let l = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = l.local_addr().unwrap().port();
+    let load = Arc::new(Mutex::new((0usize, 0usize))); // (now, most)
+    let bytes = Arc::new(bytes);
+    let seen = load.clone();
+    std::thread::spawn(move || {
+        for s in l.incoming() {
+            let (mut s, bytes, load) = (s.unwrap(), bytes.clone(), seen.clone());
+            std::thread::spawn(move || {
+                let mut buf = Vec::new();
+                let mut b = [0u8; 4096];
+                loop {
+                    while !buf.windows(4).any(|w| w == b"\r\n\r\n") {
+                        match s.read(&mut b) {
+                            Ok(0) | Err(_) => return,
+                            Ok(n) => buf.extend_from_slice(&b[..n]),
+                        }
+                    }
+                    let end = buf.windows(4).position(|w| w == b"\r\n\r\n").unwrap() + 4;
+                    let head = String::from_utf8_lossy(&buf[..end]).to_ascii_lowercase();
+                    buf.drain(..end);
+                    let r = head
+                        .lines()
+                        .find_map(|l| l.strip_prefix("range: bytes="))
+                        .and_then(|r| r.trim().split_once('-'))
+                        .map(|(a, b)| (a.parse::<usize>().unwrap(), b.parse::<usize>().unwrap()))
+                        .unwrap();
+                    let (a, b) = (r.0, r.1.min(bytes.len() - 1));
+                    {
+                        let mut l = load.lock().unwrap();
+                        l.0 += 1;
+                        l.1 = l.1.max(l.0);
+                    }
+                    std::thread::sleep(delay);
+                    load.lock().unwrap().0 -= 1;
+                    let head = format!(
+                        "HTTP/1.1 206 Partial Content\r\nContent-Length: {}\r\nContent-Range: bytes {a}-{b}/{}\r\nETag: \"v1\"\r\n\r\n",
+                        b + 1 - a,
+                        bytes.len()
+                    );
+                    if s.write_all(head.as_bytes()).is_err() || s.write_all(&bytes[a..=b]).is_err()
+                    {
+                        return;
+                    }
+                }
+            });
+        }
+    });
+    (port, load)
+}
+
+#[test]
+fn far_apart_ranges_are_fetched_concurrently_and_near_ones_merged() {
+    let bytes: Vec<u8> = (0..1_000_000u32).map(|i| (i * 7 % 251) as u8).collect();
+    let delay = Duration::from_millis(400);
+    let (port, load) = slow_range_server(bytes.clone(), delay);
+    let url = format!("http://127.0.0.1:{port}/x.vtz");
+    let src = RemoteSource::open(&url, &RemoteOptions::default()).unwrap();
+    assert_eq!(
+        (src.len().unwrap(), src.requests()),
+        (bytes.len() as u64, 1)
+    );
+    // Four ranges far apart (one request each, at once), two near the first (merged into
+    // it), one inside the first bytes (no request).
+    let ranges = [
+        100_000..110_000,
+        300_000..300_500,
+        500_000..520_000,
+        900_000..1_000_000,
+        112_000..115_000,
+        95_000..99_000,
+        10..20,
+    ];
+    let t = Instant::now();
+    let got = src.read_ranges(&ranges).unwrap();
+    let took = t.elapsed();
+    for (r, g) in ranges.iter().zip(&got) {
+        assert!(g[..] == bytes[r.start as usize..r.end as usize], "{r:?}");
+    }
+    assert_eq!(src.requests(), 1 + 4);
+    assert_eq!(
+        src.bytes_fetched(),
+        HEAD_BYTES + 20_000 + 500 + 20_000 + 100_000
+    );
+    let most = load.lock().unwrap().1;
+    assert!(most >= 2, "at most {most} request(s) in flight at once");
+    assert!(
+        took < delay * 4,
+        "four requests took {took:?}: one after another"
+    );
+    eprintln!("4 requests of {delay:?} each took {took:?}, {most} at once");
+}
+
+/// A TCP proxy to `port` that passes what clients send at about 1.6 MB/s (16 KB per 10 ms):
+/// an upload through it takes seconds.
+fn throttling_proxy(port: u16) -> u16 {
+    let l = TcpListener::bind("127.0.0.1:0").unwrap();
+    let me = l.local_addr().unwrap().port();
+    std::thread::spawn(move || {
+        for c in l.incoming() {
+            let Ok(mut c) = c else { return };
+            let Ok(mut s) = TcpStream::connect(("127.0.0.1", port)) else {
+                return;
+            };
+            let (mut c2, mut s2) = (c.try_clone().unwrap(), s.try_clone().unwrap());
+            std::thread::spawn(move || {
+                let _ = std::io::copy(&mut s2, &mut c2);
+                let _ = c2.shutdown(std::net::Shutdown::Both);
+            });
+            std::thread::spawn(move || {
+                let mut b = [0u8; 16 * 1024];
+                while let Ok(n) = c.read(&mut b) {
+                    if n == 0 || s.write_all(&b[..n]).is_err() {
+                        break;
+                    }
+                    std::thread::sleep(Duration::from_millis(10));
+                }
+                let _ = s.shutdown(std::net::Shutdown::Both);
+            });
+        }
+    });
+    me
+}
+
+#[test]
+fn ctrl_c_during_an_upload_aborts_it_and_leaves_nothing() {
+    let Some(s3) = Moto::start() else { return };
+    s3.put("/vtz-test", b"");
+    let dir = tempfile::tempdir().unwrap();
+    // Noise that does not compress: a .vtz of about 4 MB, seconds through the proxy.
+    let mut rng = common::Rng(5);
+    let noise: Vec<u8> = (0..1000 * 1000)
+        .flat_map(|_| ((rng.below(1 << 20) as f32) / 8.0).to_le_bytes())
+        .collect();
+    let input = dir.path().join("noise.f32");
+    std::fs::write(&input, noise).unwrap();
+    std::fs::write(
+        dir.path().join("noise.json"),
+        r#"{"width": 1000, "height": 1000}"#,
+    )
+    .unwrap();
+    let tmp = dir.path().join("tmp");
+    std::fs::create_dir(&tmp).unwrap();
+    let proxy = throttling_proxy(s3.port);
+    let mut env = s3.env();
+    env[0].1 = format!("http://127.0.0.1:{proxy}");
+    env.push(("TMPDIR", tmp.to_string_lossy().into_owned()));
+    let url = "s3://vtz-test/noise.vtz";
+    let mut child = Command::new(env!("CARGO_BIN_EXE_vtz"))
+        .args([
+            "encode",
+            input.to_str().unwrap(),
+            "--lossless",
+            "--method",
+            "grid",
+            "-q",
+            "-o",
+            url,
+        ])
+        .envs(env.iter().map(|(k, v)| (*k, v.as_str())))
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until the multipart upload is under way (moto lists it), then interrupt.
+    let start = Instant::now();
+    loop {
+        let (_, list) = s3.get("/vtz-test?uploads");
+        if String::from_utf8_lossy(&list).contains("<Upload>") {
+            break;
+        }
+        if let Some(s) = child.try_wait().unwrap() {
+            panic!("vtz ended ({s}) before its upload was seen");
+        }
+        assert!(start.elapsed() < Duration::from_secs(60), "no upload began");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(130), "{}", stderr(&out));
+    assert!(stderr(&out).contains("interrupted"), "{}", stderr(&out));
+    let (_, list) = s3.get("/vtz-test?uploads");
+    assert!(
+        !String::from_utf8_lossy(&list).contains("<Upload>"),
+        "the upload was left"
+    );
+    assert_eq!(s3.get("/vtz-test/noise.vtz").0, 404, "an object appeared");
+    assert_eq!(
+        std::fs::read_dir(&tmp).unwrap().count(),
+        0,
+        "a staged file was left"
     );
 }

@@ -284,12 +284,16 @@ fn remote_error(url: &str, timeout: Duration, e: object_store::Error) -> Error {
     match &e {
         E::NotFound { .. } => return io_error(url, ErrorKind::NotFound, "not found (HTTP 404)"),
         E::PermissionDenied { .. } | E::Unauthenticated { .. } => {
-            return io_error(
-                url,
-                ErrorKind::PermissionDenied,
+            let why = if url
+                .get(..5)
+                .is_some_and(|s| s.eq_ignore_ascii_case("s3://"))
+            {
                 "access denied (HTTP 403 or 401): check the credentials (AWS_ACCESS_KEY_ID, \
-                 AWS_SECRET_ACCESS_KEY, AWS_SESSION_TOKEN) or the object's permissions",
-            );
+                 AWS_SECRET_ACCESS_KEY, AWS_SESSION_TOKEN) and the bucket's permissions"
+            } else {
+                "access denied (HTTP 403 or 401): the server refuses this file"
+            };
+            return io_error(url, ErrorKind::PermissionDenied, why);
         }
         E::Precondition { .. } => return changed(url),
         _ => {}
@@ -648,10 +652,10 @@ pub fn upload(
     };
     let res = block_on(&rt, run);
     if res.is_err() {
-        let _ = block_on(
-            &rt,
-            tokio::time::timeout(opts.timeout, store.abort_multipart(&path, &id)),
-        );
+        // The timer is made inside the runtime (tokio's timeout needs one when built).
+        let _ = block_on(&rt, async {
+            tokio::time::timeout(opts.timeout, store.abort_multipart(&path, &id)).await
+        });
     }
     uploads().retain(|(u, i, _)| !(u == url && *i == id));
     res
@@ -675,10 +679,9 @@ pub fn abort_uploads() -> usize {
         let (Ok(store), Ok(path)) = (store, object_path(&url, &key, false)) else {
             continue;
         };
-        let done = rt.block_on(tokio::time::timeout(
-            opts.timeout,
-            store.abort_multipart(&path, &id),
-        ));
+        let done = rt.block_on(async {
+            tokio::time::timeout(opts.timeout, store.abort_multipart(&path, &id)).await
+        });
         n += usize::from(matches!(done, Ok(Ok(()))));
     }
     n
