@@ -22,7 +22,10 @@ mod sidecar;
 use crate::error::{Error, Result};
 use crate::model::{DEFAULT_MAX_SAMPLES, Raster, SampleType, ValueMapping};
 pub use geotiff::StreamWriter as GeoTiffWriter;
-pub use output::{OutputFile, PendingFile, remove_temporaries, write_file};
+pub use output::{
+    OutputFile, PendingFile, remove_temporaries, track as track_temporary,
+    untrack as untrack_temporary, write_file,
+};
 pub(crate) use output::{track, untrack};
 pub(crate) use pam::{apply_gdal_mapping, with_offset_scale, without_statistics};
 pub use png::PngMapping;

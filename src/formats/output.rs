@@ -13,13 +13,14 @@ fn live() -> MutexGuard<'static, Vec<PathBuf>> {
     LIVE.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// Note a temporary file or directory being written, until [`untrack`].
-pub(crate) fn track(p: &Path) {
+/// Note a temporary file or directory being written, until [`untrack`]: a Ctrl-C handler's
+/// [`remove_temporaries`] removes it (the CLI's staging of an `s3://` output uses it too).
+pub fn track(p: &Path) {
     live().push(p.to_path_buf());
 }
 
 /// The temporary `p` was renamed into place or removed.
-pub(crate) fn untrack(p: &Path) {
+pub fn untrack(p: &Path) {
     live().retain(|q| q != p);
 }
 

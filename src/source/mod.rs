@@ -5,6 +5,9 @@
 //! index first (one read of [`HEAD_BYTES`]), then the blocks of the tiles a window touches,
 //! all of them in one call that a remote source issues concurrently.
 
+#[cfg(feature = "remote")]
+pub mod remote;
+
 use crate::error::{Error, Result};
 use std::io::{Read, Seek, SeekFrom};
 use std::ops::Range;
@@ -23,6 +26,17 @@ pub const HEAD_BYTES: u64 = 64 * 1024;
 /// merging across the rest of a block (tens of KB) would fetch the whole file; the ranges
 /// left apart are fetched concurrently.
 pub const COALESCE_GAP: u64 = 4 * 1024;
+
+/// Whether `s` is a URL a remote source reads (`http://`, `https://` or `s3://`, in any
+/// case) rather than a local path. The CLI opens such inputs with `remote::open_url`
+/// (feature `remote`).
+pub fn is_url(s: &str) -> bool {
+    s.split_once("://").is_some_and(|(scheme, _)| {
+        ["http", "https", "s3"]
+            .iter()
+            .any(|k| scheme.eq_ignore_ascii_case(k))
+    })
+}
 
 /// A source of bytes that reads ranges: a local file, memory, an object on a server.
 ///
@@ -386,6 +400,22 @@ mod tests {
         let parts = split(&rs, &m, &o, &got);
         for (r, p) in rs.iter().zip(parts) {
             assert_eq!(p, &bytes[r.start as usize..r.end as usize]);
+        }
+    }
+
+    #[test]
+    fn urls_are_told_from_paths() {
+        for u in ["https://h/a.vtz", "HTTP://h/a.vtz", "s3://b/k.vtz"] {
+            assert!(is_url(u), "{u}");
+        }
+        for p in [
+            "a.vtz",
+            "/tmp/s3/a.vtz",
+            "C:\\a.vtz",
+            "file://a.vtz",
+            "s3:/b/k",
+        ] {
+            assert!(!is_url(p), "{p}");
         }
     }
 

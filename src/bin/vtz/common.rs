@@ -3,10 +3,12 @@
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::mpsc;
+use std::sync::{Arc, mpsc};
 use std::time::Duration;
 use vtz::formats::{Format, PngMapping, ReadOptions, WriteOptions};
-use vtz::{Error, Raster, Result};
+use vtz::source::RangeSource;
+use vtz::source::remote::RemoteOptions;
+use vtz::{Error, Limits, Raster, Result};
 
 /// Global output settings.
 pub struct Ui {
@@ -281,8 +283,106 @@ pub fn write_options(
 }
 
 /// Whether a file starts like a `.vtz` point set (container version 3).
+/// The URL an input or output names (`http://`, `https://`, `s3://`), if it is one.
+pub fn url_of(p: &Path) -> Option<&str> {
+    p.to_str().filter(|s| vtz::source::is_url(s))
+}
+
+/// Remote inputs this command opened, by URL: each is opened once (one request) and shared
+/// by the routing (point set or raster) and the decoder.
+static REMOTE: std::sync::Mutex<Vec<(String, Arc<dyn RangeSource>)>> =
+    std::sync::Mutex::new(Vec::new());
+
+fn remote_source(url: &str) -> Result<Arc<dyn RangeSource>> {
+    let mut open = REMOTE.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((_, s)) = open.iter().find(|(u, _)| u == url) {
+        return Ok(s.clone());
+    }
+    let s = vtz::source::remote::open_url(url, &RemoteOptions::from_env()?)?;
+    open.push((url.to_string(), s.clone()));
+    Ok(s)
+}
+
+/// A `.vtz` input's bytes as ranges: a URL through a remote source, a local file by
+/// positioned reads.
+pub fn input_source(input: &Path) -> Result<Arc<dyn RangeSource>> {
+    match url_of(input) {
+        Some(url) => remote_source(url),
+        None => Ok(Arc::new(vtz::source::FileSource::open(input)?)),
+    }
+}
+
+/// Open a `.vtz` input (a local path or a URL) for decoding; errors name no file (the
+/// caller adds it where its messages want it).
+pub fn open_decoder(input: &Path, limits: Limits) -> Result<vtz::Decoder> {
+    vtz::Decoder::open_with_limits(input_source(input)?, limits)
+}
+
+/// An `s3://` output: the command writes a local temporary file (in a directory of its own,
+/// removed on drop and by the Ctrl-C handler), then [`Staged::upload`] sends it.
+pub struct Staged {
+    dir: PathBuf,
+    /// Where the command writes.
+    pub local: PathBuf,
+    url: String,
+    opts: RemoteOptions,
+}
+
+impl Staged {
+    /// Stage `-o URL`: only `s3://bucket/key` takes uploads; an existing object needs
+    /// `--force` (checked now, with one HEAD request, before any work).
+    pub fn new(url: &str, force: bool) -> Result<Staged> {
+        if !url
+            .get(..5)
+            .is_some_and(|s| s.eq_ignore_ascii_case("s3://"))
+        {
+            return Err(Error::invalid(format!(
+                "-o {url}: an output is a local path or s3://bucket/key (an HTTP server takes no uploads)"
+            )));
+        }
+        let opts = RemoteOptions::from_env()?;
+        if !force && vtz::source::remote::exists(url, &opts)? {
+            return Err(Error::invalid(format!(
+                "{url} exists (use --force to overwrite)"
+            )));
+        }
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.subsec_nanos());
+        let dir = std::env::temp_dir().join(format!("vtz-upload-{}-{nanos}", std::process::id()));
+        std::fs::create_dir(&dir).map_err(|e| Error::io(dir.display().to_string(), e))?;
+        vtz::formats::track_temporary(&dir);
+        Ok(Staged {
+            local: dir.join("upload.vtz"),
+            dir,
+            url: url.to_string(),
+            opts,
+        })
+    }
+
+    /// Upload the written file (a multipart upload, aborted on failure), with progress.
+    pub fn upload(&self, ui: &Ui) -> Result<()> {
+        ui.progress("uploading", |p| {
+            vtz::source::remote::upload(&self.local, &self.url, &self.opts, p)
+        })
+    }
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+        vtz::formats::untrack_temporary(&self.dir);
+    }
+}
+
 pub fn is_points_file(path: &Path) -> Result<bool> {
     use std::io::Read;
+    if let Some(url) = url_of(path) {
+        let src = remote_source(url)?;
+        let n = src.len()?.min(10);
+        let head = src.read_ranges(&[0..n])?.pop().unwrap_or_default();
+        return Ok(vtz::is_points_file(&head));
+    }
     let mut head = [0u8; 10];
     let mut f = std::fs::File::open(path).map_err(|e| Error::io(path.display().to_string(), e))?;
     let n = f
@@ -291,7 +391,13 @@ pub fn is_points_file(path: &Path) -> Result<bool> {
     Ok(vtz::is_points_file(&head[..n]))
 }
 
+/// A whole input file (a URL: the whole object, in one request, or none when it is within
+/// the first bytes read on opening).
 pub fn read_file(path: &Path) -> Result<Vec<u8>> {
+    if let Some(url) = url_of(path) {
+        let src = remote_source(url)?;
+        return Ok(src.read_ranges(&[0..src.len()?])?.pop().unwrap_or_default());
+    }
     std::fs::read(path).map_err(|e| Error::io(path.display().to_string(), e))
 }
 

@@ -6,7 +6,8 @@ use vtz::{DecodeOptions, Result};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Input .vtz file.
+    /// Input .vtz file: a path, or a URL (https://…, http://…, s3://bucket/key) read by
+    /// range requests (only the tiles a --window or --overview needs).
     pub input: PathBuf,
     /// Output raster; the format follows the extension (.tif, .png, .exr, .hgt, .asc, .f32).
     #[arg(short, long)]
@@ -116,10 +117,8 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             a.surface.to_ascii_lowercase()
         ));
     }
-    let file = std::fs::File::open(&a.input)
-        .map_err(|e| vtz::Error::io(a.input.display().to_string(), e))?;
-    let mut d = vtz::Decoder::with_limits(std::io::BufReader::new(file), opts.limits)
-        .map_err(|e| e.context(a.input.display()))?;
+    let mut d =
+        common::open_decoder(&a.input, opts.limits).map_err(|e| e.context(a.input.display()))?;
     let tiles = match (&d.info().tiles, opts.window) {
         (Some(t), None) => t.tiles.len() as u64,
         _ => 1,

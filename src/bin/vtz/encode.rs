@@ -10,9 +10,17 @@ pub struct Args {
     /// Input raster (.tif, .png, .exr, .hgt, .asc, .f32 + .json), or scattered points
     /// (.xyz .txt .csv .las .laz) encoded as a point set.
     pub input: PathBuf,
-    /// Output .vtz file (default: the input with extension .vtz).
+    /// Output .vtz file (default: the input with extension .vtz), or s3://bucket/key
+    /// (written to a temporary file, then uploaded; nothing is left on a failure).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
+    /// Where the output is shown to go (`-o s3://…`: the URL, while `output` is the local
+    /// file staged for the upload).
+    #[arg(skip)]
+    pub shown_output: Option<PathBuf>,
+    /// `-o s3://…`: the upload of `output` once written, before the summary is printed.
+    #[arg(skip)]
+    pub staged: Option<common::Staged>,
     /// Guarantee every sample within E data units, or E% of the value range (e.g. 1%).
     #[arg(long, value_name = "E", conflicts_with = "lossless")]
     pub max_error: Option<String>,
@@ -96,6 +104,24 @@ pub struct Args {
     pub raster: RasterOpts,
 }
 
+/// `-o s3://bucket/key`: the output becomes a local temporary file, uploaded once the
+/// command has written it and before it prints its summary ([`common::Staged::upload`]).
+pub fn stage(a: &mut Args) -> Result<()> {
+    let Some(url) = a
+        .output
+        .as_deref()
+        .and_then(common::url_of)
+        .map(str::to_string)
+    else {
+        return Ok(());
+    };
+    let staged = common::Staged::new(&url, a.force)?;
+    a.output = Some(staged.local.clone());
+    a.shown_output = Some(PathBuf::from(url));
+    a.staged = Some(staged);
+    Ok(())
+}
+
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let format = common::parse_format(a.format.as_deref())?;
     let bound = a
@@ -165,6 +191,9 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     })?;
     drop(src);
     out.commit()?;
+    if let Some(s) = &a.staged {
+        s.upload(ui)?;
+    }
     let info = vtz::Decoder::new(std::io::BufReader::new(
         std::fs::File::open(&output)
             .map_err(|e| vtz::Error::io(output.display().to_string(), e))?,
@@ -211,7 +240,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let stat = |k: &str| report.stats.as_ref().and_then(|s| s.get(k).cloned());
     if a.json {
         let j = serde_json::json!({
-            "input": a.input, "output": output, "bytes": n, "samples": samples,
+            "input": a.input, "output": a.shown_output.as_ref().unwrap_or(&output), "bytes": n, "samples": samples,
             "tiles": info.tiles.as_ref().map_or(1, |t| t.tiles.len()),
             "bits_per_sample": bps,
             "ratio": info.sample_type.bits() as f64 / bps.max(f64::MIN_POSITIVE),
@@ -250,7 +279,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         };
         ui.say(format!(
             "{}: {n} bytes, {bps:.3} bits/sample ({:.1}:1 against {}), {what}",
-            output.display(),
+            a.shown_output.as_ref().unwrap_or(&output).display(),
             info.sample_type.bits() as f64 / bps.max(f64::MIN_POSITIVE),
             info.sample_type.name()
         ));

@@ -7,7 +7,7 @@ use vtz::{Limits, RasterType, Result};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Input .vtz file.
+    /// Input .vtz file: a path, or a URL (https://…, http://…, s3://bucket/key).
     pub input: PathBuf,
     /// Print JSON on stdout instead of text.
     #[arg(long)]
@@ -22,8 +22,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args, _ui: &Ui) -> Result<()> {
-    let bytes = common::read_file(&a.input)?;
-    let mut dec = vtz::Decoder::with_limits(std::io::Cursor::new(bytes), Limits::default())
+    let mut dec = common::open_decoder(&a.input, Limits::default())
         .map_err(|e| e.context(a.input.display()))?;
     let info = dec.info().clone();
     let h = &info;

@@ -175,9 +175,11 @@ fn usage_error_line(e: &clap::Error, sub: Option<&str>) -> String {
 }
 
 fn main() -> ExitCode {
-    // Ctrl-C or SIGTERM: remove the temporaries of outputs still being written (an output
-    // appears only by a rename once complete), then stop with 130 as a shell expects.
+    // Ctrl-C or SIGTERM: abort the multipart uploads in flight (`-o s3://…`) and remove the
+    // temporaries of outputs still being written (an output appears only by a rename once
+    // complete), then stop with 130 as a shell expects.
     let _ = ctrlc::set_handler(|| {
+        vtz::source::remote::abort_uploads();
         vtz::formats::remove_temporaries();
         eprintln!("vtz: interrupted; unfinished outputs removed");
         std::process::exit(130);
@@ -190,8 +192,9 @@ fn main() -> ExitCode {
     let res = match cli.cmd {
         // Point sets (`points`) share encode, decode and info with rasters: routed here, so
         // the raster commands know nothing of them.
-        Cmd::Encode(a) => common::check_not_dir(&a.input)
+        Cmd::Encode(mut a) => common::check_not_dir(&a.input)
             .and_then(|()| points::check_encode_options(&a))
+            .and_then(|()| encode::stage(&mut a))
             .and_then(|()| {
                 if points::is_points_input(&a) {
                     points::encode(&a, &ui)

@@ -204,6 +204,9 @@ pub fn encode(a: &encode::Args, ui: &Ui) -> Result<()> {
         vtz::encode_points(&points, &o, &mut |f| p(f))
     })?;
     vtz::formats::write_file(&output, bytes, a.force)?;
+    if let Some(s) = &a.staged {
+        s.upload(ui)?;
+    }
     if a.max_error.is_none() {
         ui.say("note: no --max-error given: 1% of each column's value range");
     }
@@ -216,7 +219,7 @@ pub fn encode(a: &encode::Args, ui: &Ui) -> Result<()> {
     let bpp = 8.0 * rep.bytes as f64 / rep.points.max(1) as f64;
     if a.json {
         let j = serde_json::json!({
-            "input": a.input, "output": output, "bytes": rep.bytes, "points": rep.points,
+            "input": a.input, "output": a.shown_output.as_ref().unwrap_or(&output), "bytes": rep.bytes, "points": rep.points,
             "positions": rep.positions, "sites": rep.sites, "levels": rep.levels,
             "bits_per_point": bpp, "resolution": rep.resolution,
             "positions_lossless": rep.positions_lossless,
@@ -240,7 +243,7 @@ pub fn encode(a: &encode::Args, ui: &Ui) -> Result<()> {
             .collect();
         ui.say(format!(
             "{}: {} bytes, {bpp:.2} bits/point, {} points ({} positions), {} sites in {} levels; {}",
-            output.display(),
+            a.shown_output.as_ref().unwrap_or(&output).display(),
             rep.bytes,
             rep.points,
             rep.positions,
@@ -268,9 +271,8 @@ pub fn decode_route(a: &decode::Args) -> Result<Option<Vec<u8>>> {
     if points_out {
         // Only a file that opens as a raster is "a raster file": a truncated or foreign one
         // gets the decoder's own error (corrupt input, exit 1), as `vtz info` says it.
-        let f = std::fs::File::open(&a.input)
-            .map_err(|e| Error::io(a.input.display().to_string(), e))?;
-        vtz::Decoder::new(std::io::BufReader::new(f)).map_err(|e| e.context(a.input.display()))?;
+        common::open_decoder(&a.input, vtz::Limits::default())
+            .map_err(|e| e.context(a.input.display()))?;
         return Err(Error::invalid(format!(
             "{} is a raster file: it decodes to a raster format (.tif, .png, .exr, .hgt, .asc, .f32), not to points",
             a.input.display()

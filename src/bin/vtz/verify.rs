@@ -7,7 +7,7 @@ use vtz::{Limits, Result};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The .vtz files to check.
+    /// The .vtz files to check: paths, or URLs (https://…, http://…, s3://bucket/key).
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
     /// Print one JSON object per file on stdout instead of text.
@@ -98,8 +98,5 @@ fn check(path: &PathBuf) -> Result<vtz::Verified> {
     if crate::common::is_points_file(path)? {
         return vtz::verify_points(&crate::common::read_file(path)?, Limits::default());
     }
-    let file =
-        std::fs::File::open(path).map_err(|e| vtz::Error::io(path.display().to_string(), e))?;
-    let mut d = vtz::Decoder::with_limits(std::io::BufReader::new(file), Limits::default())?;
-    d.verify()
+    common::open_decoder(path, Limits::default())?.verify()
 }
