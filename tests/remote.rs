@@ -264,17 +264,18 @@ impl Moto {
 
     /// The settings a source needs here (moto takes any key).
     fn options(&self) -> RemoteOptions {
-        let mut o = RemoteOptions::default();
-        o.s3 = [
-            ("aws_endpoint", self.endpoint()),
-            ("aws_access_key_id", "test".into()),
-            ("aws_secret_access_key", "test".into()),
-            ("aws_region", "us-east-1".into()),
-        ]
-        .into_iter()
-        .map(|(k, v)| (k.to_string(), v))
-        .collect();
-        o
+        RemoteOptions {
+            s3: [
+                ("aws_endpoint", self.endpoint()),
+                ("aws_access_key_id", "test".into()),
+                ("aws_secret_access_key", "test".into()),
+                ("aws_region", "us-east-1".into()),
+            ]
+            .into_iter()
+            .map(|(k, v)| (k.to_string(), v))
+            .collect(),
+            ..Default::default()
+        }
     }
 
     /// The same as environment variables, for the CLI.
@@ -333,7 +334,8 @@ impl RangeSource for Counting {
 /// within `COALESCE_GAP`.
 fn predicted(calls: &[Vec<Range<u64>>], len: u64) -> Vec<Range<u64>> {
     let head = len.min(HEAD_BYTES);
-    let mut out = vec![0..HEAD_BYTES];
+    let mut out = Vec::new();
+    out.push(0..HEAD_BYTES);
     for c in calls.iter().skip(1) {
         let far: Vec<Range<u64>> = c
             .iter()
