@@ -44,6 +44,8 @@ pub fn is_url(s: &str) -> bool {
 /// short read), may read them in any order or at once, and must return the same bytes for
 /// the same range for as long as the source is open (a remote source checks the object's
 /// ETag and fails when it changed).
+// `len` is fallible (a remote length may need a request): an `is_empty` would only repeat it.
+#[allow(clippy::len_without_is_empty)]
 pub trait RangeSource: Send + Sync {
     /// The object's length in bytes.
     fn len(&self) -> Result<u64>;

@@ -349,6 +349,10 @@ fn remote_error(url: &str, timeout: Duration, e: object_store::Error) -> Error {
 
 /// An object on an HTTP(S) server or an S3 bucket, read by byte ranges. See the
 /// [module docs](self).
+///
+/// Its reads block the calling thread (any thread, several at once); called from inside an
+/// async runtime they run on a scoped thread. It owns a tokio runtime, which tokio does not
+/// let an async task drop: drop it outside async code (or in `spawn_blocking`).
 pub struct RemoteSource {
     store: Arc<dyn ObjectStore>,
     path: ObjectPath,

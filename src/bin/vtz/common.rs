@@ -380,7 +380,10 @@ pub fn is_points_file(path: &Path) -> Result<bool> {
     if let Some(url) = url_of(path) {
         let src = remote_source(url)?;
         let n = src.len()?.min(10);
-        let head = src.read_ranges(&[0..n])?.pop().unwrap_or_default();
+        let head = src
+            .read_ranges(std::slice::from_ref(&(0..n)))?
+            .pop()
+            .unwrap_or_default();
         return Ok(vtz::is_points_file(&head));
     }
     let mut head = [0u8; 10];
@@ -396,7 +399,11 @@ pub fn is_points_file(path: &Path) -> Result<bool> {
 pub fn read_file(path: &Path) -> Result<Vec<u8>> {
     if let Some(url) = url_of(path) {
         let src = remote_source(url)?;
-        return Ok(src.read_ranges(&[0..src.len()?])?.pop().unwrap_or_default());
+        let all = 0..src.len()?;
+        return Ok(src
+            .read_ranges(std::slice::from_ref(&all))?
+            .pop()
+            .unwrap_or_default());
     }
     std::fs::read(path).map_err(|e| Error::io(path.display().to_string(), e))
 }

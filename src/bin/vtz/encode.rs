@@ -20,7 +20,7 @@ pub struct Args {
     pub shown_output: Option<PathBuf>,
     /// `-o s3://…`: the upload of `output` once written, before the summary is printed.
     #[arg(skip)]
-    pub staged: Option<common::Staged>,
+    pub staged: Option<Box<common::Staged>>,
     /// Guarantee every sample within E data units, or E% of the value range (e.g. 1%).
     #[arg(long, value_name = "E", conflicts_with = "lossless")]
     pub max_error: Option<String>,
@@ -118,7 +118,7 @@ pub fn stage(a: &mut Args) -> Result<()> {
     let staged = common::Staged::new(&url, a.force)?;
     a.output = Some(staged.local.clone());
     a.shown_output = Some(PathBuf::from(url));
-    a.staged = Some(staged);
+    a.staged = Some(Box::new(staged));
     Ok(())
 }
 

@@ -1,7 +1,7 @@
 //! `vtz verify`: check .vtz files end to end, one line per file.
 
 use crate::common::{self, Ui};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use vtz::metrics::num;
 use vtz::{Limits, Result};
 
@@ -94,7 +94,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     Ok(())
 }
 
-fn check(path: &PathBuf) -> Result<vtz::Verified> {
+fn check(path: &Path) -> Result<vtz::Verified> {
     if crate::common::is_points_file(path)? {
         return vtz::verify_points(&crate::common::read_file(path)?, Limits::default());
     }
