@@ -311,12 +311,17 @@ impl Source {
     pub fn name(&self) -> String {
         self.shared.src.name()
     }
-    /// The bytes of each range (those inside the head from memory, the others in one call
-    /// to the source, which may coalesce and fetch them concurrently).
+    /// The bytes of each range (what of them the head holds from memory, the rest in one
+    /// call to the source, which may coalesce and fetch them concurrently).
     pub fn read_ranges(&self, ranges: &[Range<u64>]) -> Result<Vec<Vec<u8>>> {
         let head = &self.shared.head;
         let hl = head.len() as u64;
-        let far: Vec<Range<u64>> = ranges.iter().filter(|r| r.end > hl).cloned().collect();
+        // What the head does not hold: a range reaching past it is fetched from its end.
+        let far: Vec<Range<u64>> = ranges
+            .iter()
+            .filter(|r| r.end > hl)
+            .map(|r| r.start.max(hl)..r.end)
+            .collect();
         let mut got = if far.is_empty() {
             Vec::new()
         } else {
@@ -329,9 +334,16 @@ impl Source {
                 if r.end <= hl {
                     Ok(head[r.start as usize..r.end as usize].to_vec())
                 } else {
-                    let b = got
+                    let tail = got
                         .next()
                         .ok_or_else(|| Error::corrupt("a range read gave too few ranges"))?;
+                    let b = if r.start < hl {
+                        let mut b = head[r.start as usize..].to_vec();
+                        b.extend_from_slice(&tail);
+                        b
+                    } else {
+                        tail
+                    };
                     if b.len() as u64 != r.end - r.start {
                         return Err(Error::corrupt(format!(
                             "{}: a read of bytes {}..{} gave {} bytes",
@@ -419,6 +431,44 @@ mod tests {
         ] {
             assert!(!is_url(p), "{p}");
         }
+    }
+
+    /// A source that records the ranges asked of it.
+    struct Logged(MemorySource, Mutex<Vec<Range<u64>>>);
+    impl RangeSource for Logged {
+        fn len(&self) -> Result<u64> {
+            self.0.len()
+        }
+        fn read_ranges(&self, r: &[Range<u64>]) -> Result<Vec<Vec<u8>>> {
+            self.1.lock().unwrap().extend_from_slice(r);
+            self.0.read_ranges(r)
+        }
+        fn name(&self) -> String {
+            "logged".into()
+        }
+    }
+
+    #[test]
+    fn ranges_the_head_holds_are_not_fetched_again() {
+        let n = HEAD_BYTES as usize + 1000;
+        let bytes: Vec<u8> = (0..n).map(|i| (i % 253) as u8).collect();
+        let src = Arc::new(Logged(
+            MemorySource::new(bytes.clone()),
+            Mutex::new(Vec::new()),
+        ));
+        let s = Source::open(src.clone()).unwrap();
+        let h = HEAD_BYTES;
+        let got = s
+            .read_ranges(&[10..20, h - 100..h + 50, h + 10..h + 20])
+            .unwrap();
+        assert_eq!(got[0], &bytes[10..20]);
+        assert_eq!(got[1], &bytes[(h - 100) as usize..(h + 50) as usize]);
+        assert_eq!(got[2], &bytes[(h + 10) as usize..(h + 20) as usize]);
+        // The open, then only what lies past the head.
+        assert_eq!(
+            *src.1.lock().unwrap(),
+            vec![0..h, h..h + 50, h + 10..h + 20]
+        );
     }
 
     #[test]
