@@ -21,7 +21,7 @@ VTZ_CAPI_LIB="$target/ci/libvtz_capi.a" capi/build-gdal-plugin.sh >&2
 venv="${VTZ_BENCH_VENV:-$root/target/remote-bench-venv}"
 echo "== the Python package into $venv (maturin build --profile ci)" >&2
 [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
-"$venv/bin/pip" install -q --disable-pip-version-check maturin numpy
+"$venv/bin/pip" install -q --disable-pip-version-check maturin numpy fsspec aiohttp
 rm -rf "$venv/dist"
 "$venv/bin/maturin" build --profile ci -q -m python/Cargo.toml -o "$venv/dist"
 "$venv/bin/pip" install -q --disable-pip-version-check --force-reinstall --no-deps "$venv"/dist/vtz-*.whl
