@@ -171,15 +171,32 @@ pub(crate) fn overview_prefixes<R: Read + Seek>(rd: &mut ContainerReader<R>) -> 
     let Some(method) = methods::by_section(entry.kind) else {
         return Ok(Vec::new());
     };
-    let header = rd.header().clone();
     let mask = rd.read_mask()?;
-    let flat = rd.read_flat(mask.as_deref())?;
-    let method_mask = method_mask(mask.as_deref(), flat.as_ref(), header.samples() as usize);
+    let prefixes = whole_job(rd, idx, mask.as_deref(), |job| {
+        method.overview_prefixes(job)
+    })?;
+    Ok(prefixes
+        .into_iter()
+        .map(|e| entry.offset + e as u64)
+        .collect())
+}
+
+/// Run `f` on the one-thread, whole-raster decode job of section `idx` (its payload read,
+/// the flat regions read, `mask` the file's validity mask).
+pub(crate) fn whole_job<R: Read + Seek, T>(
+    rd: &mut ContainerReader<R>,
+    idx: usize,
+    mask: Option<&[bool]>,
+    f: impl FnOnce(&DecodeJob) -> Result<T>,
+) -> Result<T> {
+    let header = rd.header().clone();
+    let flat = rd.read_flat(mask)?;
+    let method_mask = method_mask(mask, flat.as_ref(), header.samples() as usize);
     let payload = rd.read_section(idx)?;
     let job = DecodeJob {
         payload: &payload,
         header: &header,
-        mask: method_mask.as_deref().or(mask.as_deref()),
+        mask: method_mask.as_deref().or(mask),
         window: Window::full(header.width as usize, header.height as usize),
         sites: None,
         levels: None,
@@ -188,11 +205,7 @@ pub(crate) fn overview_prefixes<R: Read + Seek>(rd: &mut ContainerReader<R>) -> 
         base: None,
         progress: &|_| {},
     };
-    Ok(method
-        .overview_prefixes(&job)?
-        .into_iter()
-        .map(|e| entry.offset + e as u64)
-        .collect())
+    f(&job)
 }
 
 /// Decode one container (an untiled file, or one tile's block) with options into a raster:

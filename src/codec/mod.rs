@@ -815,22 +815,7 @@ impl Decoder {
             self.mask = Some(rd.read_mask()?);
         }
         let mask = self.mask.as_ref().and_then(|m| m.as_deref());
-        let flat = rd.read_flat(mask)?;
-        let method_mask = decode::method_mask(mask, flat.as_ref(), header.samples() as usize);
-        let payload = rd.read_section(i)?;
-        let job = DecodeJob {
-            payload: &payload,
-            header: &header,
-            mask: method_mask.as_deref().or(mask),
-            window: Window::full(header.width as usize, header.height as usize),
-            sites: None,
-            levels: None,
-            threads: 1,
-            flat: flat.as_ref(),
-            base: None,
-            progress: &|_| {},
-        };
-        f(&job).map(Some)
+        decode::whole_job(rd, i, mask, f).map(Some)
     }
 }
 

@@ -554,6 +554,23 @@ fn check_entry(
     Ok(range)
 }
 
+/// A tile index's bytes (both versions): its checksum checked, its count that of the grid's
+/// `n` tiles; the entries are `[4, len − 4)`.
+fn read_index(inner: &mut Source, at: std::ops::Range<u64>, n: u64) -> Result<Vec<u8>> {
+    let ibuf = inner.read_at(at)?;
+    let (ib, crc_bytes) = ibuf.split_at(ibuf.len() - 4);
+    if !checksum_ok(crc32fast::hash(ib), crc_bytes) {
+        return Err(Error::corrupt("tile index checksum mismatch"));
+    }
+    let count = ByteReader::new(ib, "tile index").u32("tile count")? as u64;
+    if count != n {
+        return Err(Error::corrupt(format!(
+            "tile index: {count} tiles listed, the grid has {n}"
+        )));
+    }
+    Ok(ibuf)
+}
+
 /// Version 2's index (at `index_offset`, ending the file) and global directory (from
 /// `global_start` to the first block).
 #[allow(clippy::too_many_arguments)]
@@ -597,16 +614,8 @@ fn read_index_v2(
             )));
         }
     }
-    let ibuf = inner.read_at(index_offset..index_offset + index_len)?;
-    let (ib, crc_bytes) = ibuf.split_at(ibuf.len() - 4);
-    if !checksum_ok(crc32fast::hash(ib), crc_bytes) {
-        return Err(Error::corrupt("tile index checksum mismatch"));
-    }
-    let mut r = ByteReader::new(ib, "tile index");
-    let count = r.u32("tile count")? as u64;
-    if count != n {
-        return Err(r.corrupt(format!("{count} tiles listed, the grid has {n}")));
-    }
+    let ibuf = read_index(inner, index_offset..index_offset + index_len, n)?;
+    let mut r = ByteReader::new(&ibuf[4..ibuf.len() - 4], "tile index");
     let mut tiles = Vec::with_capacity(n as usize);
     let mut first = None;
     let mut expect: Option<u64> = None;
@@ -710,16 +719,8 @@ fn read_cloud_index(
     if index_at + index_len > file_len {
         return Err(Error::corrupt("file is truncated in the tile index"));
     }
-    let ibuf = inner.read_at(index_at..index_at + index_len)?;
-    let (ib, crc_bytes) = ibuf.split_at(ibuf.len() - 4);
-    if !checksum_ok(crc32fast::hash(ib), crc_bytes) {
-        return Err(Error::corrupt("tile index checksum mismatch"));
-    }
-    let mut r = ByteReader::new(ib, "tile index");
-    let count = r.u32("tile count")? as u64;
-    if count != n {
-        return Err(r.corrupt(format!("{count} tiles listed, the grid has {n}")));
-    }
+    let ibuf = read_index(inner, index_at..index_at + index_len, n)?;
+    let mut r = ByteReader::new(&ibuf[4..ibuf.len() - 4], "tile index");
     let mut tiles = Vec::with_capacity(n as usize);
     for k in 0..n as usize {
         let t = |m: String| {

@@ -66,25 +66,22 @@ pub trait RangeSource: Send + Sync {
 /// Merge sorted-or-not ranges that lie within `gap` bytes of each other. Gives the merged
 /// ranges (ascending) and, for each input range, the merged range holding it.
 pub fn coalesce(ranges: &[Range<u64>], gap: u64) -> (Vec<Range<u64>>, Vec<usize>) {
-    let mut order: Vec<usize> = (0..ranges.len()).collect();
-    order.sort_by_key(|&i| (ranges[i].start, ranges[i].end));
-    let mut merged: Vec<Range<u64>> = Vec::new();
-    let mut owner = vec![0usize; ranges.len()];
-    for i in order {
-        let r = &ranges[i];
-        match merged.last_mut() {
-            Some(m) if r.start <= m.end.saturating_add(gap) => m.end = m.end.max(r.end),
-            _ => merged.push(r.clone()),
-        }
-        owner[i] = merged.len() - 1;
-    }
-    (merged, owner)
+    merge_by(ranges, |r, m| r.start <= m.end.saturating_add(gap))
 }
 
 /// Ranges that overlap merged, adjacent ones kept apart (ascending): for a reader with a
 /// cache of its own whose transport merges consecutive ranges itself (GDAL's /vsicurl/),
 /// so each tile block stays an entry of its own. Same shape as [`coalesce`].
 pub fn disjoint(ranges: &[Range<u64>]) -> (Vec<Range<u64>>, Vec<usize>) {
+    merge_by(ranges, |r, m| r.start < m.end || *m == *r)
+}
+
+/// Ranges in ascending order, each merged into the last merged one when `joins(range,
+/// last)`; gives the merged ranges and, for each input range, the one holding it.
+fn merge_by(
+    ranges: &[Range<u64>],
+    joins: impl Fn(&Range<u64>, &Range<u64>) -> bool,
+) -> (Vec<Range<u64>>, Vec<usize>) {
     let mut order: Vec<usize> = (0..ranges.len()).collect();
     order.sort_by_key(|&i| (ranges[i].start, ranges[i].end));
     let mut merged: Vec<Range<u64>> = Vec::new();
@@ -92,7 +89,7 @@ pub fn disjoint(ranges: &[Range<u64>]) -> (Vec<Range<u64>>, Vec<usize>) {
     for i in order {
         let r = &ranges[i];
         match merged.last_mut() {
-            Some(m) if r.start < m.end || *m == *r => m.end = m.end.max(r.end),
+            Some(m) if joins(r, m) => m.end = m.end.max(r.end),
             _ => merged.push(r.clone()),
         }
         owner[i] = merged.len() - 1;
