@@ -182,7 +182,18 @@ impl Nginx {
 
     /// Every request logged so far.
     fn log(&self) -> Vec<Logged> {
-        let text = std::fs::read_to_string(self.dir.path().join("access.log")).unwrap_or_default();
+        // nginx writes a request's line after it has sent the response, so a client may see
+        // the answer before the line is there: read until the log stops growing.
+        let path = self.dir.path().join("access.log");
+        let mut text = std::fs::read_to_string(&path).unwrap_or_default();
+        for _ in 0..40 {
+            std::thread::sleep(std::time::Duration::from_millis(50));
+            let again = std::fs::read_to_string(&path).unwrap_or_default();
+            if again == text {
+                break;
+            }
+            text = again;
+        }
         text.lines()
             .map(|l| {
                 let q: Vec<&str> = l.split('"').collect();
@@ -763,7 +774,15 @@ fn http_failures_are_one_line_errors_and_leave_no_output() {
     assert!(e.contains("the object changed while it was read"), "{e}");
     assert!(e.contains(&ng.url("tiled.vtz")), "{e}");
     assert!(!e.contains('\n'), "{e}");
-    let last = ng.requests("/tiled.vtz", 0).pop().unwrap();
+    // The refused GET's line (nginx logs it after answering; wait for it a little).
+    let mut last = ng.requests("/tiled.vtz", 0).pop().unwrap();
+    for _ in 0..20 {
+        if last.status == 412 {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+        last = ng.requests("/tiled.vtz", 0).pop().unwrap();
+    }
     assert_eq!((last.status, last.if_match), (412, true), "{last:?}");
 }
 
