@@ -61,6 +61,7 @@ fn encode_method(
         effort: opts.effort.unwrap_or(crate::methods::DEFAULT_EFFORT),
         flat,
         base: None,
+        levels_first: opts.levels_first,
     };
     Ok(Candidate {
         method: m,

@@ -28,7 +28,7 @@ pub struct EncodeOptions {
     /// Free-form JSON stored in a metadata section (e.g. provenance).
     pub metadata: Option<String>,
     /// Tile side in samples: a raster larger than this in either direction is cut into
-    /// tiles that encode and decode independently (container version 2). `None` = tiles of
+    /// tiles that encode and decode independently (container version 4). `None` = tiles of
     /// [`DEFAULT_TILE`](crate::DEFAULT_TILE) for rasters of more than 4096² samples
     /// (whatever their shape), else untiled; `Some(0)` = never tile (version 1).
     pub tile: Option<u32>,
@@ -40,6 +40,11 @@ pub struct EncodeOptions {
     /// make (the residual layer: 1–2 its fast coding alone, 3–5 its range-coded
     /// predictors, 6–9 both).
     pub effort: Option<u8>,
+    /// Set by the tiled encoder for each tile of a version-4 file: the residual layer
+    /// keeps a coding without coarse levels (the weighted scan) only where it saves more
+    /// than [`LEVELS_FIRST_MARGIN`](crate::methods::LEVELS_FIRST_MARGIN), since an overview
+    /// reads such a tile's whole block instead of its first chunks.
+    pub(crate) levels_first: bool,
 }
 
 /// A resampling factor `num/den` (2/1 doubles the resolution, 1/4 quarters it), always in

@@ -157,6 +157,7 @@ pub fn encode_tiled<W: Write + Seek>(
     topts.max_error = e.map(ErrorBound::Abs);
     topts.metadata = None;
     topts.tile = Some(0);
+    topts.levels_first = true;
     let mut global = Vec::new();
     if let Some(meta) = &opts.metadata {
         global.push(crate::container::Section {

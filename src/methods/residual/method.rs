@@ -34,6 +34,7 @@ impl Representation for Residual {
             job.max_error.unwrap_or(0.0),
             job.flat,
             job.effort,
+            job.levels_first,
             progress,
         )?;
         Ok((payload, bound).into())

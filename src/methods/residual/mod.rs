@@ -103,6 +103,7 @@ pub(crate) fn encode(
     e: f64,
     fixed: Option<&[f64]>,
     effort: u8,
+    levels_first: bool,
     progress: &mut dyn FnMut(f64),
 ) -> Result<(Vec<u8>, f64)> {
     if !(e >= 0.0 && e.is_finite()) {
@@ -189,7 +190,17 @@ pub(crate) fn encode(
             progress((t + 1) as f64 / n as f64);
             let mut payload = payload;
             payload[32..40].copy_from_slice(&errs.max.to_le_bytes());
-            if best.as_ref().is_none_or(|b| payload.len() < b.len()) {
+            // The smallest wins; with `levels_first` a coding without coarse levels (the
+            // weighted scan) only by more than LEVELS_FIRST_MARGIN.
+            let keep = if levels_first && matches!(pred, Predictor::Weighted) {
+                1.0 - crate::methods::LEVELS_FIRST_MARGIN
+            } else {
+                1.0
+            };
+            if best
+                .as_ref()
+                .is_none_or(|b| (payload.len() as f64) < keep * b.len() as f64)
+            {
                 best = Some(payload);
             }
         }
