@@ -87,6 +87,40 @@ def variants(data):
             for tw, th in ((16, 16), (w, 16), (16, h)):
                 out.append((f"tile{tw}x{th}", edited(data, [(t, "<I", tw), (t + 4, "<I", th)])))
             out.append(("margin", edited(data, [(t + 8, "<I", 1 << 30)])))
+    elif version == 4:
+        # The tile index follows the header: header fields edited with the header's CRC
+        # recomputed (sizes, tile sides, margin, index length, which end the header body),
+        # and index entries edited with the index's CRC recomputed (a chunk end of 4 GiB, a
+        # huge valid count, the most chunks).
+        w, h = struct.unpack_from("<II", data, 16)
+        t = 16 + hlen - 16
+        ilen = struct.unpack_from("<I", data, t + 12)[0]
+
+        def header_only(f):
+            d = bytearray(data)
+            for off, fmt, v in f:
+                struct.pack_into(fmt, d, off, v)
+            struct.pack_into("<I", d, 16 + hlen, zlib.crc32(bytes(d[:16 + hlen])))
+            return bytes(d)
+
+        def entry(field_at, fmt, v):
+            d = bytearray(data)
+            at = 20 + hlen + 4  # entry 0
+            struct.pack_into(fmt, d, at + field_at, v)
+            end = 20 + hlen + ilen - 4
+            struct.pack_into("<I", d, end, zlib.crc32(bytes(d[20 + hlen:end])))
+            return bytes(d)
+
+        for (nw, nh) in ((16384, 16384), (1 << 28, 1), (1, 1 << 28), (2 * w, h), (w + 1, h)):
+            out.append((f"size{nw}x{nh}", header_only([(16, "<I", nw), (20, "<I", nh)])))
+        for tw, th in ((16, 16), (w, 16), (16, h)):
+            out.append((f"tile{tw}x{th}", header_only([(t, "<I", tw), (t + 4, "<I", th)])))
+        out.append(("margin", header_only([(t + 8, "<I", 1 << 30)])))
+        for name, v in (("index_max", 0xFFFFFFFF), ("index_small", 8), ("index_plus1", ilen + 1)):
+            out.append((name, header_only([(t + 12, "<I", v)])))
+        out.append(("chunk_end_max", entry(40, "<I", 0xFFFFFFFF)))
+        out.append(("valid_max", entry(8, "<Q", 1 << 62)))
+        out.append(("chunks13", entry(4, "<B", 13)))
     elif version == 3:
         points, positions = struct.unpack_from("<QQ", data, 16)
         big = 1 << 27

@@ -162,6 +162,21 @@ fn variants(data: &[u8]) -> Vec<(String, Vec<u8>)> {
             ] {
                 out.push((name.into(), header_only(&[(t + 12, le32(v))])));
             }
+            // Index entries edited, the index's CRC recomputed (entry 0: a chunk end of
+            // 4 GiB, a huge valid count, the most chunks), as fuzz/hostile.py makes them.
+            let ilen = u32_at(data, t + 12) as usize;
+            let entry = |at: usize, v: &[u8]| {
+                let mut b = data.to_vec();
+                let e = 20 + hlen + 4 + at;
+                b[e..e + v.len()].copy_from_slice(v);
+                let end = 20 + hlen + ilen - 4;
+                let crc = crc32fast::hash(&b[20 + hlen..end]);
+                b[end..end + 4].copy_from_slice(&crc.to_le_bytes());
+                b
+            };
+            out.push(("chunk_end_max".into(), entry(40, &u32::MAX.to_le_bytes())));
+            out.push(("valid_max".into(), entry(8, &(1u64 << 62).to_le_bytes())));
+            out.push(("chunks13".into(), entry(4, &[13])));
         }
         v => panic!("a golden file of version {v}"),
     }
