@@ -4,61 +4,11 @@
 //! chunks' checks.
 
 use std::io::Cursor;
-use std::ops::Range;
-use std::sync::{Arc, Mutex};
-use vtz::source::{HEAD_BYTES, MemorySource};
-use vtz::{Decoder, EncodeOptions, Error, ErrorBound, RangeSource, Window};
+use vtz::source::HEAD_BYTES;
+use vtz::{Decoder, EncodeOptions, Error, ErrorBound, Window};
 
 mod common;
-use common::{Kind, terrain};
-
-/// A source that records every call and range a reader makes.
-struct Counting {
-    inner: MemorySource,
-    calls: Mutex<Vec<Vec<Range<u64>>>>,
-}
-
-impl RangeSource for Counting {
-    fn len(&self) -> vtz::Result<u64> {
-        self.inner.len()
-    }
-    fn read_ranges(&self, ranges: &[Range<u64>]) -> vtz::Result<Vec<Vec<u8>>> {
-        self.calls.lock().unwrap().push(ranges.to_vec());
-        self.inner.read_ranges(ranges)
-    }
-    fn name(&self) -> String {
-        "counting".into()
-    }
-}
-
-impl Counting {
-    fn new(bytes: &[u8]) -> Arc<Counting> {
-        Arc::new(Counting {
-            inner: MemorySource::new(bytes.to_vec()),
-            calls: Mutex::new(Vec::new()),
-        })
-    }
-    /// Requests a remote source would make: ranges merged as `vtz::source::coalesce` does.
-    fn requests(&self) -> (usize, u64) {
-        let calls = self.calls.lock().unwrap();
-        let mut n = 0;
-        let mut bytes = 0;
-        for c in calls.iter() {
-            let (m, _) = vtz::source::coalesce(c, vtz::source::COALESCE_GAP);
-            n += m.len();
-            bytes += m.iter().map(|r| r.end - r.start).sum::<u64>();
-        }
-        (n, bytes)
-    }
-    /// Bytes the reader asked for (before a remote source merges near ranges).
-    fn asked(&self) -> u64 {
-        let calls = self.calls.lock().unwrap();
-        calls.iter().flatten().map(|r| r.end - r.start).sum()
-    }
-    fn reset(&self) {
-        self.calls.lock().unwrap().clear();
-    }
-}
+use common::{Counting, Kind, terrain};
 
 fn crop(r: &vtz::Raster, w: Window) -> Vec<f64> {
     let mut out = Vec::with_capacity(w.width * w.height);
@@ -135,7 +85,7 @@ fn a_tiled_encode_writes_version_4_with_the_index_first() {
 fn opening_is_one_read_and_a_window_reads_only_its_rows_of_tiles() {
     for effort in [None, Some(1)] {
         let bytes = big_file(effort);
-        let src = Counting::new(&bytes);
+        let src = Counting::over_bytes(&bytes);
         let mut d = Decoder::open(src.clone()).unwrap();
         let calls = src.calls.lock().unwrap().clone();
         assert_eq!(calls.len(), 1, "opening: {calls:?}");
@@ -281,7 +231,7 @@ fn an_overview_reads_a_prefix_of_each_block_and_decodes_what_the_whole_block_giv
             );
             assert_eq!(a.mask, b.mask);
             // And reads far less.
-            let src = Counting::new(&bytes);
+            let src = Counting::over_bytes(&bytes);
             let mut d = Decoder::open(src.clone()).unwrap();
             src.reset();
             d.options(common::decode_opts(|o| o.overview = Some(k)));

@@ -13,7 +13,7 @@
 
 mod common;
 
-use common::{Kind, bits, encode_opts, terrain};
+use common::{Counting, Kind, bits, encode_opts, terrain};
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::ops::Range;
@@ -321,25 +321,6 @@ impl Drop for Moto {
     }
 }
 
-/// A local source that records the ranges of every read the library makes.
-struct Counting {
-    inner: FileSource,
-    calls: Mutex<Vec<Vec<Range<u64>>>>,
-}
-
-impl RangeSource for Counting {
-    fn len(&self) -> vtz::Result<u64> {
-        self.inner.len()
-    }
-    fn read_ranges(&self, ranges: &[Range<u64>]) -> vtz::Result<Vec<Vec<u8>>> {
-        self.calls.lock().unwrap().push(ranges.to_vec());
-        self.inner.read_ranges(ranges)
-    }
-    fn name(&self) -> String {
-        self.inner.name()
-    }
-}
-
 /// The requests a remote source sends for the reads a local source saw: the first
 /// `HEAD_BYTES` (the open), then each later read's ranges past those first bytes, merged
 /// within `COALESCE_GAP`.
@@ -590,10 +571,7 @@ fn a_window_sends_the_requests_predicted_from_the_files_layout() {
     std::fs::write(&path, &bytes).unwrap();
     let url = ng.url("tiled.vtz");
     for (what, o) in decodes().into_iter().skip(1) {
-        let counting = Arc::new(Counting {
-            inner: FileSource::open(&path).unwrap(),
-            calls: Mutex::new(Vec::new()),
-        });
+        let counting = Counting::new(FileSource::open(&path).unwrap());
         let l = decode(counting.clone(), &o).unwrap();
         let calls = counting.calls.lock().unwrap().clone();
         let mut want = predicted(&calls, len);
@@ -823,10 +801,7 @@ fn s3_reads_uploads_and_errors() {
     let path = dir.path().join("tiled.vtz");
     std::fs::write(&path, &bytes).unwrap();
     for (what, o) in decodes() {
-        let counting = Arc::new(Counting {
-            inner: FileSource::open(&path).unwrap(),
-            calls: Mutex::new(Vec::new()),
-        });
+        let counting = Counting::new(FileSource::open(&path).unwrap());
         let l = decode(counting.clone(), &o).unwrap();
         let remote = Arc::new(RemoteSource::open("s3://vtz-test/tiled.vtz", &opts).unwrap());
         let r = decode(remote.clone(), &o).unwrap();

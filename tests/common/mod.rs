@@ -216,3 +216,61 @@ pub fn read_shared(name: &str) -> Option<Raster> {
 pub fn tmp(dir: &tempfile::TempDir, name: &str) -> String {
     dir.path().join(name).to_string_lossy().into_owned()
 }
+
+// ---------------------------------------------------------------- counting reads
+
+/// A range source that records every call a reader makes (each call's ranges), over any
+/// other source: what the container asks for, before a remote source merges anything.
+pub struct Counting<S> {
+    pub inner: S,
+    pub calls: std::sync::Mutex<Vec<Vec<std::ops::Range<u64>>>>,
+}
+
+impl<S: vtz::RangeSource> vtz::RangeSource for Counting<S> {
+    fn len(&self) -> vtz::Result<u64> {
+        self.inner.len()
+    }
+    fn read_ranges(&self, ranges: &[std::ops::Range<u64>]) -> vtz::Result<Vec<Vec<u8>>> {
+        self.calls.lock().unwrap().push(ranges.to_vec());
+        self.inner.read_ranges(ranges)
+    }
+    fn name(&self) -> String {
+        self.inner.name()
+    }
+}
+
+impl<S> Counting<S> {
+    pub fn new(inner: S) -> std::sync::Arc<Counting<S>> {
+        std::sync::Arc::new(Counting {
+            inner,
+            calls: std::sync::Mutex::new(Vec::new()),
+        })
+    }
+    /// Requests a remote source would make: each call's ranges merged as
+    /// `vtz::source::coalesce` does; and their bytes.
+    pub fn requests(&self) -> (usize, u64) {
+        let calls = self.calls.lock().unwrap();
+        let mut n = 0;
+        let mut bytes = 0;
+        for c in calls.iter() {
+            let (m, _) = vtz::source::coalesce(c, vtz::source::COALESCE_GAP);
+            n += m.len();
+            bytes += m.iter().map(|r| r.end - r.start).sum::<u64>();
+        }
+        (n, bytes)
+    }
+    /// Bytes the reader asked for.
+    pub fn asked(&self) -> u64 {
+        let calls = self.calls.lock().unwrap();
+        calls.iter().flatten().map(|r| r.end - r.start).sum()
+    }
+    pub fn reset(&self) {
+        self.calls.lock().unwrap().clear();
+    }
+}
+
+impl Counting<vtz::source::MemorySource> {
+    pub fn over_bytes(bytes: &[u8]) -> std::sync::Arc<Self> {
+        Counting::new(vtz::source::MemorySource::new(bytes.to_vec()))
+    }
+}
