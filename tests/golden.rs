@@ -113,15 +113,33 @@ fn cases() -> Vec<(&'static str, EncodeOptions, f64, Option<&'static str>)> {
             None,
         ),
         (
-            // The fast coding (coding 2, effort 1), lossless, with stencil weights.
+            // The fast coding (coding 2, effort 2; written when effort 1 wrote it),
+            // lossless, with stencil weights.
             "v1_kauai_crop_residual_fast",
-            effort(encode_opts(&[Method::RESIDUAL], None), 1),
+            effort(encode_opts(&[Method::RESIDUAL], None), 2),
             0.0,
             None,
         ),
         (
             // The fast coding with narrower coarse-level bins (coding 3).
             "v1_kauai_crop_residual_fast_tight",
+            effort(
+                encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(60.0))),
+                2,
+            ),
+            60.0,
+            None,
+        ),
+        (
+            // The lane coding (coding 4, effort 1), lossless, with stencil weights.
+            "v1_kauai_crop_residual_lanes",
+            effort(encode_opts(&[Method::RESIDUAL], None), 1),
+            0.0,
+            None,
+        ),
+        (
+            // The lane coding with narrower coarse-level bins (coding 5).
+            "v1_kauai_crop_residual_lanes_tight",
             effort(
                 encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(60.0))),
                 1,
@@ -318,10 +336,14 @@ fn the_residual_and_flat_golden_files_cover_both_predictors_and_every_new_coding
     }
     predictors.sort();
     predictors.dedup();
-    // The fast files: codings 2 (with stencil weights) and 3.
+    // The fast files: codings 2 (with stencil weights) and 3; the lane files: 4 and 5.
     for (name, coding, weighted) in [
         ("v1_kauai_crop_residual_fast", 2, true),
         ("v1_kauai_crop_residual_fast_tight", 3, false),
+        // (The crop's lane coding fits no stencil worth its bytes: the banded lane file
+        // below has them.)
+        ("v1_kauai_crop_residual_lanes", 4, false),
+        ("v1_kauai_crop_residual_lanes_tight", 5, false),
     ] {
         let bytes = read(name);
         let info = vtz::info(&bytes, vtz::Limits::default()).unwrap();
@@ -435,12 +457,20 @@ fn the_block_coded_flat_golden_file_decodes_to_its_expected_samples() {
     }
 }
 
-/// The fast coding's bands: the whole Kauai tile (1201², voids, sea) within 20 m, whose
-/// finest passes are cut into 3 and 2 bands of rows. Its 1.4 M decoded samples are pinned
-/// by the CRC-32 of their f32 bytes (`.expected.crc32`), not stored.
+/// The fast and lane codings' bands: the whole Kauai tile (1201², voids, sea) within 20 m,
+/// whose finest passes are cut into 3 and 2 bands of rows. Its 1.4 M decoded samples are
+/// pinned by the CRC-32 of their f32 bytes (`.expected.crc32`), not stored.
 #[test]
 fn the_banded_fast_golden_file_decodes_to_its_expected_samples() {
-    let name = "v1_kauai_residual_fast_bands";
+    for (name, eff, coding) in [
+        ("v1_kauai_residual_fast_bands", 2, 3),
+        ("v1_kauai_residual_lanes_bands", 1, 5),
+    ] {
+        banded(name, eff, coding);
+    }
+}
+
+fn banded(name: &str, eff: u8, coding: u8) {
     let vtz_path = dir().join(format!("{name}.vtz"));
     let exp_path = dir().join(format!("{name}.expected.crc32"));
     let src = read_corpus("srtm3_N22W160_kauai.hgt");
@@ -450,7 +480,7 @@ fn the_banded_fast_golden_file_decodes_to_its_expected_samples() {
             &src,
             &effort(
                 encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(20.0))),
-                1,
+                eff,
             ),
         )
         .unwrap();
@@ -460,7 +490,8 @@ fn the_banded_fast_golden_file_decodes_to_its_expected_samples() {
     let bytes = std::fs::read(&vtz_path).unwrap();
     let info = vtz::info(&bytes, vtz::Limits::default()).unwrap();
     let p = info.sections[info.primary].offset as usize;
-    assert_eq!(bytes[p], 3, "coding 3");
+    assert_eq!(bytes[p], coding, "{name}: coding {coding}");
+    assert!(bytes[p + 3] > 0, "{name}: stencil weights");
     for threads in [1, 2] {
         let r = vtz::decode_with(&bytes, &decode_opts(|o| o.threads = threads)).unwrap();
         assert_eq!(
@@ -537,7 +568,11 @@ fn the_tiled_golden_file_decodes_to_its_expected_samples() {
 /// them is pinned too: it reads a prefix of each block.
 #[test]
 fn the_version_4_golden_files_decode_to_their_expected_samples() {
-    for (name, effort) in [("v4_kauai_tiles", None), ("v4_kauai_tiles_fast", Some(1u8))] {
+    for (name, effort) in [
+        ("v4_kauai_tiles", None),
+        ("v4_kauai_tiles_fast", Some(2u8)),
+        ("v4_kauai_tiles_lanes", Some(1u8)),
+    ] {
         // Both with the residual layer (interpolation, range-coded or fast), whose tiles
         // are progressive: several chunks each.
         let vtz_path = dir().join(format!("{name}.vtz"));

@@ -238,6 +238,103 @@ impl<'a> StreamDecoder<'a> {
     }
 }
 
+/// Interleaved states of the lane coding's streams (spec/FORMAT.md, "Lane coding"): symbol
+/// k of a pass row is coded in state k mod 4, all states sharing one word stream (ryg_rans'
+/// interleaving, as zstd's huff0 and JPEG XL's ANS use several streams or states), so the
+/// decoder's steps for consecutive symbols overlap in the processor.
+pub const STATES: usize = 4;
+
+/// Encodes one stream of interleaved states.
+pub struct LanesEncoder;
+
+impl LanesEncoder {
+    /// The bytes of `symbols`, each `(table, symbol, state)` with a nonzero frequency: the
+    /// four final states (u32 LE, state 0 first), then the renormalisation words (u16 LE)
+    /// in decode order.
+    pub fn encode(tables: &[EncTable], symbols: &[(u16, u8, u8)]) -> Vec<u8> {
+        let mut words: Vec<u16> = Vec::with_capacity(symbols.len() / 2);
+        let mut xs = [LOW; STATES];
+        for &(t, s, l) in symbols.iter().rev() {
+            let t = &tables[t as usize];
+            let f = t.freq[s as usize];
+            debug_assert!(f > 0, "symbol {s} has no frequency");
+            let x = &mut xs[l as usize];
+            let x_max = (f as u64) << (32 - PREC);
+            if *x as u64 >= x_max {
+                words.push(*x as u16);
+                *x >>= 16;
+            }
+            *x = ((*x / f) << PREC) + (*x % f) + t.cum[s as usize];
+        }
+        let mut out = Vec::with_capacity(4 * STATES + 2 * words.len());
+        for x in xs {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
+        for w in words.iter().rev() {
+            out.extend_from_slice(&w.to_le_bytes());
+        }
+        out
+    }
+}
+
+/// Decodes one stream of interleaved states.
+pub struct LanesDecoder<'a> {
+    x: [u32; STATES],
+    bytes: &'a [u8],
+    pos: usize,
+    tables: &'a [u32],
+}
+
+impl<'a> LanesDecoder<'a> {
+    pub fn new(bytes: &'a [u8], tables: &'a DecTables) -> Result<LanesDecoder<'a>> {
+        let Some(first) = bytes.get(..4 * STATES) else {
+            return Err(corrupt("an entropy stream is shorter than its states"));
+        };
+        let mut x = [0u32; STATES];
+        for (x, b) in x.iter_mut().zip(first.chunks_exact(4)) {
+            *x = u32::from_le_bytes(b.try_into().expect("4 bytes"));
+            if *x < LOW {
+                return Err(corrupt("an entropy stream starts below its lowest state"));
+            }
+        }
+        Ok(LanesDecoder {
+            x,
+            bytes,
+            pos: 4 * STATES,
+            tables: &tables.entries,
+        })
+    }
+
+    /// The next symbol of state `lane` (< [`STATES`]) from the table starting at slot
+    /// `base` (k·[`TOTAL`]).
+    #[inline(always)]
+    pub fn symbol(&mut self, lane: usize, base: usize) -> Result<u32> {
+        let x = self.x[lane];
+        let e = self.tables[base + (x & (TOTAL - 1)) as usize];
+        let mut x = ((e >> 12) & 0x1fff) * (x >> PREC) + (e & 0xfff);
+        if x < LOW {
+            let Some(w) = self.bytes.get(self.pos..self.pos + 2) else {
+                return Err(corrupt("an entropy stream ends early"));
+            };
+            x = (x << 16) | u16::from_le_bytes([w[0], w[1]]) as u32;
+            self.pos += 2;
+        }
+        self.x[lane] = x;
+        Ok(e >> 25)
+    }
+
+    /// Check the stream's end: every word read and every state back where the encoder
+    /// began.
+    pub fn finish(&self) -> Result<()> {
+        if self.pos != self.bytes.len() || self.x != [LOW; STATES] {
+            return Err(corrupt(
+                "an entropy stream does not end where its symbols do",
+            ));
+        }
+        Ok(())
+    }
+}
+
 #[cold]
 fn corrupt(msg: &str) -> Error {
     Error::corrupt(format!("residual section: {msg}"))

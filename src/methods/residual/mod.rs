@@ -35,6 +35,11 @@ const CODING_LATTICE_TIGHT: u8 = 1;
 const CODING_FAST: u8 = 2;
 /// As [`CODING_FAST`], with narrower bins on coarse levels.
 const CODING_FAST_TIGHT: u8 = 3;
+/// The lane coding: the fast coding's passes predicted from coarser passes only, four
+/// interleaved rANS states (spec/FORMAT.md, "Lane coding").
+const CODING_LANES: u8 = 4;
+/// As [`CODING_LANES`], with narrower bins on coarse levels.
+const CODING_LANES_TIGHT: u8 = 5;
 const PRED_INTERP: u8 = 0;
 const PRED_WEIGHTED: u8 = 1;
 /// Bytes before the stencil weights.
@@ -231,17 +236,21 @@ pub(crate) fn encode(
 /// narrow ones). Efforts 6–9: all of those and both bin layouts of the fast coding. The
 /// smallest wins.
 fn codings(cfg: interp::Config, bin: i64, effort: u8) -> Vec<Predictor> {
-    let fast = |tighten, tighten_auto| {
+    let fast = |tighten, tighten_auto, lanes| {
         Predictor::Fast(fast::Config {
             levels: cfg.levels,
             ls_levels: cfg.ls_levels,
             tighten,
             tighten_auto,
             band_log2: fast::DEFAULT_BAND_LOG2,
+            lanes,
         })
     };
-    if effort <= 2 {
-        return vec![fast(false, true)];
+    if effort == 1 {
+        return vec![fast(false, true, true)];
+    }
+    if effort == 2 {
+        return vec![fast(false, true, false)];
     }
     let mut v = vec![Predictor::Interp(cfg)];
     if effort >= 5 && bin >= 3 {
@@ -252,7 +261,7 @@ fn codings(cfg: interp::Config, bin: i64, effort: u8) -> Vec<Predictor> {
     }
     v.push(Predictor::Weighted);
     if effort > DEFAULT_EFFORT {
-        v.extend([fast(false, false), fast(true, false)]);
+        v.extend([fast(false, false, false), fast(true, false, false)]);
     }
     v
 }
@@ -374,7 +383,12 @@ fn code(p: &Plane, pred: Predictor, s: &Setup, exceptions: &[u8]) -> Result<(Vec
         let cfg = fast::resolve(p, cfg);
         let (weights, body, rec) = fast::encode(p, cfg)?;
         let mut out = fixed_fields(
-            if cfg.tighten { CODING_FAST_TIGHT } else { CODING_FAST },
+            match (cfg.lanes, cfg.tighten) {
+                (false, false) => CODING_FAST,
+                (false, true) => CODING_FAST_TIGHT,
+                (true, false) => CODING_LANES,
+                (true, true) => CODING_LANES_TIGHT,
+            },
             PRED_INTERP,
             cfg.levels as u8,
             weights.len() as u8,
@@ -455,7 +469,7 @@ struct Head {
 /// Read and check the fixed fields (the reader is left at the stencil weights).
 fn read_head(rd: &mut ByteReader) -> Result<Head> {
     let coding = rd.u8("coding")?;
-    if coding > CODING_FAST_TIGHT {
+    if coding > CODING_LANES_TIGHT {
         return Err(rd.corrupt(format!("coding {coding} is not defined")));
     }
     let fast = coding >= CODING_FAST;
@@ -474,10 +488,11 @@ fn read_head(rd: &mut ByteReader) -> Result<Head> {
                 Predictor::Fast(fast::Config {
                     levels: levels as u32,
                     ls_levels: weight_sets as u32 / 2,
-                    tighten: coding == CODING_FAST_TIGHT,
+                    tighten: coding == CODING_FAST_TIGHT || coding == CODING_LANES_TIGHT,
                     tighten_auto: false,
                     // Read with the streams.
                     band_log2: 0,
+                    lanes: coding >= CODING_LANES,
                 })
             } else {
             Predictor::Interp(interp::Config {
@@ -732,12 +747,12 @@ fn decode_marked(
     };
     // The narrowest bins (tightened coarse levels) allow the largest bins.
     let max_bin = ((hi - lo) as u64) / narrowest(cfg, bin as i64) as u64 + 1;
-    let rec = if let Predictor::Fast(f) = cfg {
+    let rec: fast::Rec = if let Predictor::Fast(f) = cfg {
         let wts: Vec<[i16; fast::NW]> = flat_w
             .chunks_exact(fast::NW)
             .map(|c| c.try_into().expect("NW weights"))
             .collect();
-        fast::decode(&mut rd, &p, f.levels, f.tighten, &wts, max_bin, win.y..win.y + win.height, stop, marks)?
+        fast::decode(&mut rd, &p, f.levels, f.tighten, f.lanes, &wts, max_bin, win.y..win.y + win.height, stop, marks)?
     } else {
     // Codings 0 and 1 are one range-coded stream: every sample is decoded, whatever the
     // window.
@@ -776,14 +791,17 @@ fn decode_marked(
     if let Some(m) = marks {
         m.extend(c.marks.iter().map(|&e| stream_at + e));
     }
-    st.rec
+    fast::Rec::I64(st.rec, 0)
     };
     let fill = header.nodata.unwrap_or(f64::NAN);
     if stop > 0 {
         // Every 2^stop-th sample of every 2^stop-th row, as the full decode has them.
         let s = 1usize << stop;
         let (ow, oh) = (w.div_ceil(s), h.div_ceil(s));
-        let rec = crate::methods::decimate(&rec, w, h, stop);
+        let rec = match &rec {
+            fast::Rec::I32(v, o) => fast::Rec::I32(crate::methods::decimate(v, w, h, stop), *o),
+            fast::Rec::I64(v, o) => fast::Rec::I64(crate::methods::decimate(v, w, h, stop), *o),
+        };
         let kinds = if kinds.is_empty() { kinds } else { crate::methods::decimate(&kinds, w, h, stop) };
         let mut out = lattice_values(&rec, &kinds, fill, domain, header, ow, Window::full(ow, oh));
         if let Some(f) = flat {
@@ -819,27 +837,46 @@ fn decode_marked(
 /// multiplication, division and rounding where the lattice is the integers and the sample
 /// type's codes are the values (the same result: every step is exact). The case is chosen
 /// once, so the loop over the samples holds no branch but the kinds'.
-fn lattice_values(rec: &[i64], kinds: &[u8], fill: f64, domain: Domain, header: &Header, w: usize, win: Window) -> Vec<f64> {
+fn lattice_values(rec: &fast::Rec, kinds: &[u8], fill: f64, domain: Domain, header: &Header, w: usize, win: Window) -> Vec<f64> {
+    match rec {
+        fast::Rec::I32(v, o) => lattice_values_of(v, |k| k as i64 + o, kinds, fill, domain, header, w, win),
+        fast::Rec::I64(v, o) => lattice_values_of(v, |k| k + o, kinds, fill, domain, header, w, win),
+    }
+}
+
+/// [`lattice_values`] of a plane of `V`, `index` its lattice index.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn lattice_values_of<V: Copy + Sync>(
+    rec: &[V],
+    index: impl Fn(V) -> i64 + Sync + Copy,
+    kinds: &[u8],
+    fill: f64,
+    domain: Domain,
+    header: &Header,
+    w: usize,
+    win: Window,
+) -> Vec<f64> {
     let at = (w, win);
     let ident = domain.mul == 1.0 && domain.div == 1.0 && domain.offset == 0.0;
     let int_codes = (header.mapping.scale == 1.0 && header.mapping.offset == 0.0)
         .then(|| header.sample_type.int_range())
         .flatten();
     match (ident, int_codes) {
-        (true, Some((lo, hi))) => map_values(rec, kinds, fill, at, |k| (k as f64).clamp(lo, hi)),
-        (true, None) => map_values(rec, kinds, fill, at, |k| crate::quant::finish_value(k as f64, header)),
-        _ => map_values(rec, kinds, fill, at, |k| finish_value(domain.raw(k), header)),
+        (true, Some((lo, hi))) => map_values(rec, kinds, fill, at, |k| (index(k) as f64).clamp(lo, hi)),
+        (true, None) => map_values(rec, kinds, fill, at, |k| crate::quant::finish_value(index(k) as f64, header)),
+        _ => map_values(rec, kinds, fill, at, |k| finish_value(domain.raw(index(k)), header)),
     }
 }
 
 /// [`lattice_values`] with the value function chosen, in chunks of whole window rows
 /// (about 2^16 samples) on all threads; `w` is the raster's width.
-fn map_values(
-    rec: &[i64],
+fn map_values<V: Copy + Sync>(
+    rec: &[V],
     kinds: &[u8],
     fill: f64,
     (w, win): (usize, Window),
-    value: impl Fn(i64) -> f64 + Sync,
+    value: impl Fn(V) -> f64 + Sync,
 ) -> Vec<f64> {
     const CHUNK: usize = 1 << 16;
     let ww = win.width;

@@ -1,7 +1,7 @@
 //! The encoder's clusters of contexts: adjacent energy classes of a level group merged
 //! while merging saves bits (data and tables).
 
-use super::passes::{ALPHABET, FINE, GROUPS, NCTX};
+use super::passes::{ALPHABET, FINE};
 use crate::entropy::rans;
 
 /// Estimated bits of coding `counts` with its own table (data and table).
@@ -23,10 +23,10 @@ fn cost(counts: &[u64]) -> f64 {
 /// Cluster each group's energy classes into runs of adjacent classes (greedy: merge the
 /// neighbouring pair that saves the most bits while one does). Returns per context its
 /// cluster and the clusters' summed counts.
-pub(super) fn cluster(counts: &[[u64; ALPHABET]]) -> (Vec<u8>, Vec<[u64; ALPHABET]>) {
-    let mut map = vec![0u8; NCTX];
+pub(super) fn cluster(counts: &[[u64; ALPHABET]]) -> (Vec<u16>, Vec<[u64; ALPHABET]>) {
+    let mut map = vec![0u16; counts.len()];
     let mut out: Vec<[u64; ALPHABET]> = Vec::new();
-    for g in 0..GROUPS {
+    for g in 0..counts.len() / FINE {
         // Runs: (first class, counts, cost).
         let mut runs: Vec<(usize, [u64; ALPHABET], f64)> = (0..FINE)
             .map(|c| {
@@ -55,7 +55,7 @@ pub(super) fn cluster(counts: &[[u64; ALPHABET]]) -> (Vec<u8>, Vec<[u64; ALPHABE
         for (r, run) in runs.iter().enumerate() {
             let end = runs.get(r + 1).map_or(FINE, |n| n.0);
             for c in run.0..end {
-                map[g * FINE + c] = out.len() as u8;
+                map[g * FINE + c] = out.len() as u16;
             }
             out.push(run.1);
         }

@@ -1,7 +1,7 @@
 //! What the encoder fits on the source before coding: each pass's stencil weights and
 //! whether coarse bins are narrowed.
 
-use super::passes::{Config, FIT_SAMPLES_LOG2, Kind, NW, Pass};
+use super::passes::{Config, FIT_SAMPLES_LOG2, Kind, NCOARSE, NW, Pass};
 use super::super::plane::CODED;
 use super::super::plane::{Plane, SKIPPED};
 
@@ -9,7 +9,9 @@ use super::super::plane::{Plane, SKIPPED};
 /// inside on pass rows spread to about 2^[`FIT_SAMPLES_LOG2`] samples. `None` when they are not worth their 20
 /// bytes: the bits they save are estimated from the squared errors before and after, each
 /// plus W²/4 (wide bins hide small improvements).
-pub(super) fn fit(p: &Plane, pass: Pass) -> Option<[i16; NW]> {
+/// With `lanes` (the lane coding) the pass's own two points are left out and the weights
+/// kept within ±[`super::lanes::MAX_WEIGHT`].
+pub(super) fn fit(p: &Plane, pass: Pass, lanes: bool) -> Option<[i16; NW]> {
     let (w, h) = (p.width, p.height);
     let s = pass.s;
     let offs = pass.offsets(w);
@@ -49,6 +51,9 @@ pub(super) fn fit(p: &Plane, pass: Pass) -> Option<[i16; NW]> {
                     ok &= !skips || p.kinds[j] != SKIPPED;
                     *fk = p.values[j] - base;
                 }
+                if lanes {
+                    fs[NCOARSE..].fill(0);
+                }
                 if ok {
                     f(&fs, p.values[i] - base);
                 }
@@ -57,7 +62,12 @@ pub(super) fn fit(p: &Plane, pass: Pass) -> Option<[i16; NW]> {
     };
     let mut n = super::super::ls::Normal::<NW>::new();
     each(&mut |fs, t| n.add(fs, t as f64));
-    let wt = n.solve();
+    let mut wt = n.solve();
+    if lanes {
+        let m = super::lanes::MAX_WEIGHT;
+        wt = wt.map(|v| v.clamp(-m, m));
+        wt[NCOARSE..].fill(0);
+    }
     if wt == [0; NW] {
         return None;
     }

@@ -20,6 +20,7 @@ use std::ops::Range;
 mod band;
 mod clusters;
 mod fit;
+mod lanes;
 mod passes;
 
 use band::{Global, run_pass};
@@ -56,7 +57,7 @@ struct Reader<'a> {
     ans: StreamDecoder<'a>,
     raw: BitReader<'a>,
     /// Per context, the first slot of its cluster's table.
-    base: &'a [usize; NCTX],
+    base: &'a [usize],
     max_bin: u64,
 }
 
@@ -81,6 +82,24 @@ impl SymCoder for Reader<'_> {
     }
 }
 
+/// A decoded plane: each value plus the offset is the sample's lattice index (the lane
+/// coding's plane as it ran, in i32 where it fits, so no wider copy is made).
+pub enum Rec {
+    I32(Vec<i32>, i64),
+    I64(Vec<i64>, i64),
+}
+
+impl Rec {
+    /// The lattice indices.
+    #[cfg(test)]
+    pub fn indices(&self) -> Vec<i64> {
+        match self {
+            Rec::I32(v, o) => v.iter().map(|&k| k as i64 + o).collect(),
+            Rec::I64(v, o) => v.iter().map(|&k| k + o).collect(),
+        }
+    }
+}
+
 /// What [`encode`] returns: stencil weights, the coding's bytes, the reconstruction.
 pub type Encoded = (Vec<[i16; NW]>, Vec<u8>, Vec<i64>);
 
@@ -101,7 +120,7 @@ pub fn encode(p: &Plane, cfg: Config) -> Result<Encoded> {
         .par_iter()
         .map(|&pass| {
             (pass.kind != Kind::Anchor && pass.level() <= cfg.ls_levels)
-                .then(|| fit(p, pass))
+                .then(|| fit(p, pass, cfg.lanes))
                 .flatten()
         })
         .collect();
@@ -118,6 +137,9 @@ pub fn encode(p: &Plane, cfg: Config) -> Result<Encoded> {
             weights.push(f.unwrap_or([0; NW]));
             pass.weights = f;
         }
+    }
+    if cfg.lanes {
+        return encode_lanes(p, cfg, &all, weights);
     }
     let g = Global::new(p);
     for pass in all {
@@ -237,12 +259,13 @@ pub fn decode(
     p: &Plane,
     levels: u32,
     tighten: bool,
+    lanes: bool,
     weights: &[[i16; NW]],
     max_bin: u64,
     rows: Range<usize>,
     stop: u32,
     marks: Option<&mut Vec<usize>>,
-) -> Result<Vec<i64>> {
+) -> Result<Rec> {
     let (w, h) = (p.width, p.height);
     let band_log2 = rd.u8("band size")?;
     if !BAND_LOG2.contains(&band_log2) {
@@ -254,13 +277,18 @@ pub fn decode(
         tighten,
         tighten_auto: false,
         band_log2,
+        lanes,
     };
+    if lanes && !weights.iter().all(lanes::weights_ok) {
+        return Err(rd.corrupt("a lane coding's stencil weighs the pass's own points or exceeds ±4096"));
+    }
     let tlen = read_varint(rd, "tables length")?;
     let tbytes = rd.take(usize::try_from(tlen).unwrap_or(usize::MAX), "tables")?;
     let mut br = BitReader::new(tbytes, "tables");
-    let mut map = [0usize; NCTX];
+    let groups = GROUPS;
+    let mut map = vec![0usize; groups * FINE];
     let mut clusters = 0usize;
-    for g in 0..GROUPS {
+    for g in 0..groups {
         if g > 0 {
             clusters += 1;
         }
@@ -277,7 +305,7 @@ pub fn decode(
     }
     br.finish()?;
     let dec = DecTables::new(&tables);
-    let base: [usize; NCTX] = map.map(|c| c * rans::TOTAL as usize);
+    let base: Vec<usize> = map.iter().map(|c| c * rans::TOTAL as usize).collect();
     // The streams: lengths first, then the bytes.
     let passes = passes(cfg, p.bin);
     let bands: Vec<Vec<(usize, usize)>> = passes.iter().map(|pass| pass.bands(w, h, band_log2)).collect();
@@ -328,11 +356,51 @@ pub fn decode(
     if stop == 0 {
         rd.finish()?;
     }
+    let pick = needed(&passes, &bands, h, rows);
+    if lanes {
+        let base: Vec<u32> = base.iter().map(|&b| b as u32).collect();
+        let mut next_w = weights.iter();
+        let mut passes = passes;
+        for pass in &mut passes {
+            if pass.kind != Kind::Anchor && pass.level() <= cfg.ls_levels {
+                pass.weights = next_w.next().copied().filter(|w| *w != [0; NW]);
+            }
+        }
+        let mut firsts = Vec::with_capacity(bands.len());
+        let mut next = 0;
+        for b in &bands {
+            firsts.push(next);
+            next += b.len();
+        }
+        let chosen: Vec<Range<usize>> = passes
+            .iter()
+            .zip(pick)
+            .map(|(pass, pick)| if pass.kind != Kind::Anchor && pass.s < 1 << stop { 0..0 } else { pick })
+            .collect();
+        let make = |k: usize, b: usize| -> Result<lanes::Reader> {
+            let (a, r) = slices[firsts[k] + chosen[k].start + b];
+            Ok(lanes::Reader {
+                ans: rans::LanesDecoder::new(a, &dec)?,
+                raw: BitReader::new(r, "raw bits"),
+                base: &base,
+                max_bin,
+            })
+        };
+        let done = |rdr: lanes::Reader| -> Result<()> {
+            rdr.ans.finish()?;
+            let mut raw = rdr.raw;
+            raw.finish()
+        };
+        return if lanes::fits_i32(p.hi - p.lo, p.bin) {
+            run_lanes::<i32, _, _>(p, &passes, &bands, &chosen, make, done).map(|x| Rec::I32(x.0, p.lo))
+        } else {
+            run_lanes::<i64, _, _>(p, &passes, &bands, &chosen, make, done).map(|x| Rec::I64(x.0, p.lo))
+        };
+    }
     let n = w * h;
     let mut rec = vec![0i64; n];
     let mut mag = vec![0u8; n];
     let g = Global::new(p);
-    let pick = needed(&passes, &bands, h, rows);
     let mut next = 0;
     let mut next_w = weights.iter();
     for ((mut pass, bands), pick) in passes.into_iter().zip(&bands).zip(pick) {
@@ -363,7 +431,128 @@ pub fn decode(
             },
         )?;
     }
-    Ok(rec)
+    Ok(Rec::I64(rec, 0))
+}
+
+/// The lane coding's encode (after the stencils are fitted): tokens of every band, tables
+/// from their counts, then each band's interleaved stream.
+fn encode_lanes(p: &Plane, cfg: Config, all: &[Pass], weights: Vec<[i16; NW]>) -> Result<Encoded> {
+    let (w, h) = (p.width, p.height);
+    let bands: Vec<Vec<(usize, usize)>> = all.iter().map(|pass| pass.bands(w, h, cfg.band_log2)).collect();
+    let chosen: Vec<Range<usize>> = bands.iter().map(|b| 0..b.len()).collect();
+    let make = |_: usize, _: usize| Ok(lanes::Recorder::default());
+    let lo = p.lo;
+    let (rec, streams): (Vec<i64>, _) = if lanes::fits_i32(p.hi - p.lo, p.bin) {
+        let (r, s) = run_lanes::<i32, _, _>(p, all, &bands, &chosen, make, Ok)?;
+        (r.par_iter().map(|&v| v as i64 + lo).collect(), s)
+    } else {
+        let (r, s) = run_lanes::<i64, _, _>(p, all, &bands, &chosen, make, Ok)?;
+        (r.par_iter().map(|&v| v + lo).collect(), s)
+    };
+    let mut counts = vec![[0u64; ALPHABET]; lanes::LNCTX];
+    for s in &streams {
+        for &(c, t, _) in &s.syms {
+            counts[c as usize][t as usize] += 1;
+        }
+    }
+    let (map, clusters) = cluster(&counts);
+    let freqs: Vec<Vec<u32>> = clusters.iter().map(|c| rans::normalize(c)).collect();
+    let enc: Vec<EncTable> = freqs.iter().map(|f| EncTable::new(f)).collect();
+    let mut bits = BitWriter::default();
+    for g in 0..lanes::LNCTX / FINE {
+        for c in 1..FINE {
+            let k = g * FINE + c;
+            bits.put(u64::from(map[k] != map[k - 1]), 1);
+        }
+    }
+    for f in &freqs {
+        rans::write_table(&mut bits, f);
+    }
+    let tables = bits.finish();
+    let coded: Vec<(Vec<u8>, Vec<u8>)> = streams
+        .into_par_iter()
+        .map(|s| {
+            let syms: Vec<(u16, u8, u8)> = s.syms.iter().map(|&(c, t, l)| (map[c as usize], t, l)).collect();
+            (rans::LanesEncoder::encode(&enc, &syms), s.raw.finish())
+        })
+        .collect();
+    let mut out = vec![cfg.band_log2];
+    varint::put_u64(&mut out, tables.len() as u64);
+    out.extend_from_slice(&tables);
+    for (a, r) in &coded {
+        varint::put_u64(&mut out, a.len() as u64);
+        varint::put_u64(&mut out, r.len() as u64);
+    }
+    for (a, r) in &coded {
+        out.extend_from_slice(a);
+        out.extend_from_slice(r);
+    }
+    Ok((weights, out, rec))
+}
+
+/// Run the lane coding's passes on the bands `chosen[k]` of each pass k (`make(k, b)` gives
+/// the coder of the b-th chosen band of pass k, `done` takes it back): each band into
+/// buffers of its own (side by side on as many threads as there are), then written into the
+/// planes. Returns the reconstruction (lattice units less `p.lo`) and what `done`
+/// returned, in band order.
+fn run_lanes<T, C, X>(
+    p: &Plane,
+    passes: &[Pass],
+    bands: &[Vec<(usize, usize)>],
+    chosen: &[Range<usize>],
+    make: impl Fn(usize, usize) -> Result<C> + Sync,
+    done: impl Fn(C) -> Result<X> + Sync,
+) -> Result<(Vec<T>, Vec<X>)>
+where
+    T: lanes::Lane,
+    C: lanes::Tokens<T> + lanes::AnchorTokens + Send,
+    X: Send,
+{
+    let (w, h) = (p.width, p.height);
+    let mut plane = vec![T::of(0); w * h];
+    let mut mag = vec![0u8; w * h];
+    let row_coded = lanes::row_flags(p.kinds, w, h);
+    let all_coded = p.kinds.is_empty() || row_coded.iter().all(|&c| c);
+    let mut out = Vec::new();
+    for (k, pass) in passes.iter().enumerate() {
+        let picked = &bands[k][chosen[k].clone()];
+        if picked.is_empty() {
+            continue;
+        }
+        let bufs: Vec<(lanes::BandBuf<T>, X)> = {
+            let g = lanes::Global {
+                w,
+                h,
+                r: T::of(p.hi - p.lo),
+                lo: p.lo,
+                kinds: if all_coded { &[] } else { p.kinds },
+                row_coded: if all_coded { &[] } else { &row_coded },
+                values: p.values,
+                plane: &plane,
+                mag: &mag,
+            };
+            let arch = pulp::Arch::new();
+            let one = |b: usize, band: (usize, usize)| -> Result<(lanes::BandBuf<T>, X)> {
+                let mut c = make(k, b)?;
+                let buf = if pass.kind == Kind::Anchor {
+                    lanes::run_anchors(&g, pass, &mut c)?
+                } else {
+                    // The band's loops compiled for the best instruction set this processor has.
+                    arch.dispatch(lanes::Band { g: &g, pass, band, coder: &mut c })?
+                };
+                Ok((buf, done(c)?))
+            };
+            if picked.len() == 1 || rayon::current_num_threads() == 1 {
+                picked.iter().enumerate().map(|(b, &band)| one(b, band)).collect::<Result<_>>()?
+            } else {
+                picked.par_iter().enumerate().map(|(b, &band)| one(b, band)).collect::<Result<_>>()?
+            }
+        };
+        let (bufs, xs): (Vec<_>, Vec<_>) = bufs.into_iter().unzip();
+        lanes::scatter(w, pass, picked, &bufs, &mut plane, &mut mag);
+        out.extend(xs);
+    }
+    Ok((plane, out))
 }
 
 /// `round_div` is the same rounding the interior fast paths write as `(n + 8) >> 4`.
@@ -418,13 +607,14 @@ mod tests {
     }
 
     /// Four levels, bands of 2^10 samples.
-    fn test_config(ls_levels: u32, tighten: bool) -> Config {
+    fn test_config(ls_levels: u32, tighten: bool, lanes: bool) -> Config {
         Config {
             levels: 4,
             ls_levels,
             tighten,
             tighten_auto: false,
             band_log2: 10,
+            lanes,
         }
     }
 
@@ -432,9 +622,18 @@ mod tests {
     fn bands_round_trip_on_any_thread_count_and_every_prefix_fails() {
         let (w, h) = (97, 83);
         let (kinds, values) = plane_data(w, h);
-        for (bin, tighten, ls) in [(1, false, 3), (5, false, 2), (41, true, 3), (301, true, 0)] {
+        for (bin, tighten, ls, lanes) in [
+            (1, false, 3, false),
+            (5, false, 2, false),
+            (41, true, 3, false),
+            (301, true, 0, false),
+            (1, false, 3, true),
+            (5, false, 2, true),
+            (41, true, 3, true),
+            (301, true, 0, true),
+        ] {
             let p = test_plane(w, h, &kinds, &values, bin);
-            let cfg = test_config(ls, tighten);
+            let cfg = test_config(ls, tighten, lanes);
             let (wts, bytes, rec) = encode(&p, cfg).unwrap();
             assert!(wts.len() <= 2 * ls as usize);
             for (i, (&r, &k)) in rec.iter().zip(&kinds).enumerate() {
@@ -447,13 +646,14 @@ mod tests {
             let max_bin = (p.hi - p.lo) as u64 / super::super::narrowest_bin(bin, 4, tighten) as u64 + 1;
             for threads in [1, 2, 3] {
                 let back = crate::methods::with_threads(threads, || {
-                    decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, &wts, max_bin, 0..h, 0, None)
+                    decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, lanes, &wts, max_bin, 0..h, 0, None)
                 })
-                .unwrap();
+                .unwrap()
+                .indices();
                 assert_eq!(back, rec, "bin {bin}, {threads} threads");
             }
             for cut in (0..bytes.len()).step_by(7) {
-                let r = decode(&mut ByteReader::new(&bytes[..cut], "t"), &p, 4, tighten, &wts, max_bin, 0..h, 0, None);
+                let r = decode(&mut ByteReader::new(&bytes[..cut], "t"), &p, 4, tighten, lanes, &wts, max_bin, 0..h, 0, None);
                 assert!(r.is_err(), "bin {bin}: a prefix of {cut} bytes decoded");
             }
             // One flipped bit in the streams decodes to an error or other samples, never a
@@ -461,7 +661,7 @@ mod tests {
             for k in (bytes.len() / 2..bytes.len()).step_by(13) {
                 let mut bad = bytes.clone();
                 bad[k] ^= 0x10;
-                let _ = decode(&mut ByteReader::new(&bad, "t"), &p, 4, tighten, &wts, max_bin, 0..h, 0, None);
+                let _ = decode(&mut ByteReader::new(&bad, "t"), &p, 4, tighten, lanes, &wts, max_bin, 0..h, 0, None);
             }
         }
     }
@@ -503,11 +703,11 @@ mod tests {
             (37, 1903, false, 3, false, 3),
             (64, 1500, false, 41, true, 0),
         ];
-        for (w, h, all_coded, bin, tighten, ls) in cases {
+        for ((w, h, all_coded, bin, tighten, ls), lanes) in cases.into_iter().flat_map(|c| [(c, false), (c, true)]) {
             let (kinds, values) = tall_plane(w, h, all_coded);
             let p = test_plane(w, h, &kinds, &values, bin);
-            let cfg = test_config(ls, tighten);
-            let what = format!("{w}x{h}, bin {bin}, {ls} stencil levels");
+            let cfg = test_config(ls, tighten, lanes);
+            let what = format!("{w}x{h}, bin {bin}, {ls} stencil levels, lanes {lanes}");
             let (wts, bytes, rec) = encode(&p, cfg).unwrap();
             assert_eq!(wts.len(), 2 * ls as usize, "{what}: a stencil on every level it may");
             let all = passes(cfg, bin);
@@ -518,7 +718,7 @@ mod tests {
                 }
             }
             let max_bin = (p.hi - p.lo) as u64 / super::super::narrowest_bin(bin, 4, tighten) as u64 + 1;
-            let dec = |rows: Range<usize>| decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, &wts, max_bin, rows, 0, None);
+            let dec = |rows: Range<usize>| decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, lanes, &wts, max_bin, rows, 0, None).map(|r| r.indices());
             assert_eq!(dec(0..h).unwrap(), rec, "{what}: the full decode");
             // Every single row, the first and last few, and random ranges.
             let mut windows: Vec<Range<usize>> = (0..h).map(|y| y..y + 1).collect();

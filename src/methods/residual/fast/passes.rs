@@ -45,6 +45,9 @@ pub struct Config {
     pub tighten_auto: bool,
     /// Bands hold about 2^band_log2 samples.
     pub band_log2: u8,
+    /// The lane coding (codings 4 and 5): every sample predicted from coarser passes only,
+    /// four interleaved rANS states, the token before in the context.
+    pub lanes: bool,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]

@@ -1,0 +1,637 @@
+//! The lane coding's kernel (codings 4 and 5, spec/FORMAT.md "Lane coding"): the fast
+//! coding's passes, bands, tokens and tables, with every sample of a pass predicted from
+//! coarser passes only, so a pass row runs in three phases: (1) predictions, stencil
+//! corrections and context classes for the whole row (no sample of the pass itself read:
+//! the loops vectorise), (2) the tokens, one tight loop over four interleaved rANS states
+//! whose only serial input is the token before, (3) reconstruction `clamp(pred + bin·q)`,
+//! vectorised again. Planes hold `value − lo` in i32 lanes where the lattice range and the
+//! bin allow ([`fits_i32`]), i64 otherwise: the arithmetic is specified so that neither
+//! overflows, so both give the same integers. Rows with skipped or fixed samples take the
+//! general token loop; the rest the plain one.
+
+use super::super::coder::quantize;
+use super::super::interp::interp1;
+use super::super::plane::{CODED, FIXED};
+use super::passes::{FINE, Kind, NCOARSE, NW, Pass, half_log, token};
+use crate::entropy::rans::{BitReader, BitWriter, LanesDecoder};
+use crate::entropy::varint;
+use crate::error::{Error, Result};
+use rayon::prelude::*;
+use std::ops::{Add, Mul, Neg, Shr, Sub};
+
+/// Contexts: per group, per energy class (the fast coding's).
+pub(super) const LNCTX: usize = super::passes::NCTX;
+/// Largest stencil weight magnitude (units of 2^-10).
+pub const MAX_WEIGHT: i16 = 4096;
+/// Stencil differences are clamped to −DIFF ..= DIFF − 1.
+const DIFF: i64 = 1 << 15;
+/// Lattice ranges and bins below this run in i32 lanes.
+const I32_FROM: i64 = 1 << 26;
+
+/// Whether a plane of range `r` (hi − lo) and bin `bin` runs in i32 lanes: every
+/// intermediate value then stays below 2^31 (the cubic's 18·2^26, the stencil's
+/// 8·2^15·2^12 + 2^26, the reconstruction's 2^26 + 2·2^27).
+pub(super) fn fits_i32(r: i64, bin: i64) -> bool {
+    r < I32_FROM && bin < I32_FROM
+}
+
+/// A sample lane: i32 or i64.
+pub(super) trait Lane:
+    Copy
+    + Ord
+    + Default
+    + Send
+    + Sync
+    + 'static
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Neg<Output = Self>
+    + Shr<u32, Output = Self>
+{
+    fn of(v: i64) -> Self;
+    fn wide(self) -> i64;
+}
+
+impl Lane for i32 {
+    #[inline(always)]
+    fn of(v: i64) -> i32 {
+        v as i32
+    }
+    #[inline(always)]
+    fn wide(self) -> i64 {
+        self as i64
+    }
+}
+
+impl Lane for i64 {
+    #[inline(always)]
+    fn of(v: i64) -> i64 {
+        v
+    }
+    #[inline(always)]
+    fn wide(self) -> i64 {
+        self
+    }
+}
+
+/// What every band reads.
+pub(super) struct Global<'a, T> {
+    pub w: usize,
+    pub h: usize,
+    /// hi − lo: every reconstruction lies in 0 ..= r.
+    pub r: T,
+    pub lo: i64,
+    /// Per sample kinds (empty: every sample coded).
+    pub kinds: &'a [u8],
+    /// Per raster row: every sample coded (empty: all).
+    pub row_coded: &'a [bool],
+    /// Source (encoder) or fixed values (decoder), absolute lattice units.
+    pub values: &'a [i64],
+    /// The planes so far: value − lo, and min(|bin|, 255).
+    pub plane: &'a [T],
+    pub mag: &'a [u8],
+}
+
+impl<T: Lane> Global<'_, T> {
+    fn coded_row(&self, y: usize) -> bool {
+        self.row_coded.is_empty() || self.row_coded[y]
+    }
+}
+
+/// Per sample kind rows: a row is plain when all its samples are coded.
+pub(super) fn row_flags(kinds: &[u8], w: usize, h: usize) -> Vec<bool> {
+    if kinds.is_empty() {
+        return Vec::new();
+    }
+    (0..h).map(|y| kinds[y * w..(y + 1) * w].iter().all(|&k| k == CODED)).collect()
+}
+
+/// The cubic interpolation at the middle of b and c: (−a + 9(b + c) − d + 8) >> 4.
+#[inline(always)]
+fn cubic<T: Lane>(a: T, b: T, c: T, d: T) -> T {
+    (T::of(9) * (b + c) - a - d + T::of(8)) >> 4
+}
+
+/// The support's curvature |−a + b + c − d| + |b − c| >> 2.
+#[inline(always)]
+fn curv<T: Lane>(a: T, b: T, c: T, d: T) -> T {
+    let z = T::of(0);
+    let u = b + c - a - d;
+    let v = b - c;
+    u.max(z - u) + (v.max(z - v) >> 2)
+}
+
+/// The stencil's correction of `base`: base + (512 + Σ w_k·clamp(t_k − base, ±2^15)) >> 10.
+#[inline(always)]
+fn corrected<T: Lane>(base: T, taps: [T; NCOARSE], wts: &[T; NCOARSE]) -> T {
+    let mut acc = T::of(512);
+    for k in 0..NCOARSE {
+        acc = acc + (taps[k] - base).clamp(T::of(-DIFF), T::of(DIFF - 1)) * wts[k];
+    }
+    base + (acc >> 10)
+}
+
+/// Per pass constants.
+#[derive(Clone, Copy)]
+struct PassK<T> {
+    bin: T,
+    bin64: u64,
+    hl_bin: u32,
+    /// The group's first context (previous token 0, class 0).
+    first: u16,
+    wts: Option<[T; NCOARSE]>,
+}
+
+impl<T: Lane> PassK<T> {
+    fn new(pass: &Pass) -> PassK<T> {
+        PassK {
+            bin: T::of(pass.bin),
+            bin64: pass.bin as u64,
+            hl_bin: half_log(pass.bin as u64),
+            first: (pass.group * FINE) as u16,
+            wts: pass.weights.map(|w| std::array::from_fn(|k| T::of(w[k] as i64))),
+        }
+    }
+
+    /// The context base of a sample: the group's, plus the class of the energy
+    /// 4·t + bin·(4m + 1) in half octaves above the bin's.
+    #[inline(always)]
+    fn class(&self, t: i64, m: u32) -> u16 {
+        let e = 4 * t as u64 + self.bin64 * (4 * m as u64 + 1);
+        self.first + (half_log(e) - self.hl_bin).min(FINE as u32 - 1) as u16
+    }
+}
+
+/// A row's samples at columns 0, st, 2·st, … gathered into `out` (contiguous, so the
+/// loops over them vectorise).
+#[inline(always)]
+fn gather<T: Copy>(row: &[T], st: usize, out: &mut Vec<T>) {
+    out.clear();
+    let mut ch = row.chunks_exact(st);
+    out.extend((&mut ch).map(|c| c[0]));
+    if let Some(&v) = ch.remainder().first() {
+        out.push(v);
+    }
+}
+
+/// Scratch rows of phase 1, reused from row to row.
+#[derive(Default)]
+pub(super) struct Scratch<T> {
+    g: [Vec<T>; 4],
+    m: [Vec<u8>; 4],
+    t: Vec<T>,
+    mm: Vec<u32>,
+}
+
+/// Predictions from four supports, corrected where `taps` gives the stencil's points:
+/// `pred[k] = clamp(corrected(cubic(a, b, c, d)), 0, r)` and the curvature `t[k]`.
+#[inline(always)]
+fn cubic_rows<T: Lane>(a: &[T], b: &[T], c: &[T], d: &[T], r: T, pred: &mut [T], t: &mut [T]) {
+    let zero = T::of(0);
+    for (((((p, t), &a), &b), &c), &d) in pred.iter_mut().zip(t.iter_mut()).zip(a).zip(b).zip(c).zip(d) {
+        *p = cubic(a, b, c, d).clamp(zero, r);
+        *t = curv(a, b, c, d);
+    }
+}
+
+/// The stencil's correction of `pred[k]` over a run of samples: its eight taps (support
+/// b, c, a, d, then four of the rows beside) given as slices in step with `pred`.
+#[inline(always)]
+fn stencil_rows<T: Lane>(taps: [&[T]; NCOARSE], wt: &[T; NCOARSE], r: T, pred: &mut [T]) {
+    let zero = T::of(0);
+    let n = pred.len();
+    let taps = taps.map(|t| &t[..n]);
+    for k in 0..n {
+        let (a, b, c, d) = (taps[2][k], taps[0][k], taps[1][k], taps[3][k]);
+        let base = cubic(a, b, c, d);
+        pred[k] = corrected(base, std::array::from_fn(|j| taps[j][k]), wt).clamp(zero, r);
+    }
+}
+
+/// Phase 1 of a pass row: predictions (clamped to 0 ..= r) and context bases of the row's
+/// `n` samples, from coarser passes only.
+#[inline(always)]
+fn predict_row<T: Lane>(g: &Global<T>, pass: &Pass, kc: &PassK<T>, y: usize, sc: &mut Scratch<T>, pred: &mut [T], cb: &mut [u16]) {
+    let (w, h, s) = (g.w, g.h, pass.s);
+    let n = pred.len();
+    let st = 2 * s;
+    let row = |d: usize| &g.plane[d * w..(d + 1) * w];
+    let mrow = |d: usize| &g.mag[d * w..(d + 1) * w];
+    sc.t.resize(n, T::of(0));
+    sc.mm.resize(n, 0);
+    match pass.kind {
+        Kind::Anchor => unreachable!("anchors run sample by sample"),
+        Kind::Vertical if y >= 3 * s && y + 3 * s < h => {
+            let [ga, gb, gc, gd] = &mut sc.g;
+            let [mb, mc, _, _] = &mut sc.m;
+            if s == 1 {
+                // A constant stride: the gathers vectorise.
+                for (o, d) in [(&mut *ga, y - 3), (&mut *gb, y - 1), (&mut *gc, y + 1), (&mut *gd, y + 3)] {
+                    gather(row(d), 2, o);
+                }
+                gather(mrow(y - 1), 2, mb);
+                gather(mrow(y + 1), 2, mc);
+            } else {
+                for (o, d) in [(&mut *ga, y - 3 * s), (&mut *gb, y - s), (&mut *gc, y + s), (&mut *gd, y + 3 * s)] {
+                    gather(row(d), st, o);
+                }
+                gather(mrow(y - s), st, mb);
+                gather(mrow(y + s), st, mc);
+            }
+            cubic_rows(ga, gb, gc, gd, g.r, pred, &mut sc.t);
+            if let Some(wt) = &kc.wts {
+                // Stencil columns: 2s ≤ x and x + 2s < w, i.e. 1 ≤ k < n − 1 (k·2s < w).
+                if n >= 3 {
+                    let m = n - 2;
+                    stencil_rows(
+                        [&gb[1..], &gc[1..], &ga[1..], &gd[1..], &gb[..m], &gc[..m], &gb[2..], &gc[2..]],
+                        wt,
+                        g.r,
+                        &mut pred[1..n - 1],
+                    );
+                }
+            }
+            for ((o, &b), &c) in sc.mm.iter_mut().zip(&mb[..n]).zip(&mc[..n]) {
+                *o = b as u32 + c as u32;
+            }
+            // Interior columns add half the four diagonal neighbours' (rows y ± s, x ± 2s).
+            if n >= 3 {
+                for k in 1..n - 1 {
+                    sc.mm[k] += (mb[k - 1] as u32 + mb[k + 1] as u32 + mc[k - 1] as u32 + mc[k + 1] as u32) / 2;
+                }
+            }
+        }
+        Kind::Horizontal => {
+            // Supports at columns x ± s, x ± 3s of x = s + k·2s: the gathered row's
+            // k − 1, k, k + 1, k + 2; interior where k ≥ 1 and s + k·2s + 3s < w.
+            let [ge, gu, gd, _] = &mut sc.g;
+            let [ml, mu, md, _] = &mut sc.m;
+            // Rows with both neighbours add half the four diagonal ones' (rows y ± s, x ± s).
+            let around = y >= s && y + s < h;
+            if around {
+                gather(mrow(y - s), st, mu);
+                gather(mrow(y + s), st, md);
+            }
+            let wts = kc.wts.as_ref().filter(|_| y >= s && y + s < h);
+            if s == 1 {
+                gather(row(y), 2, ge);
+                gather(mrow(y), 2, ml);
+                if wts.is_some() {
+                    gather(row(y - 1), 2, gu);
+                    gather(row(y + 1), 2, gd);
+                }
+            } else {
+                gather(row(y), st, ge);
+                gather(mrow(y), st, ml);
+                if wts.is_some() {
+                    gather(row(y - s), st, gu);
+                    gather(row(y + s), st, gd);
+                }
+            }
+            let k0 = 1.min(n);
+            let k1 = if 4 * s < w { ((w - 4 * s - 1) / st + 1).min(n).max(k0) } else { k0 };
+            if k1 > k0 {
+                let m = k1 - k0;
+                let (a, b, c, d) = (&ge[k0 - 1..], &ge[k0..], &ge[k0 + 1..], &ge[k0 + 2..k0 + 2 + m]);
+                cubic_rows(a, b, c, d, g.r, &mut pred[k0..k1], &mut sc.t[k0..k1]);
+                if let Some(wt) = wts {
+                    stencil_rows(
+                        [b, c, a, d, &gu[k0..], &gu[k0 + 1..], &gd[k0..], &gd[k0 + 1..]],
+                        wt,
+                        g.r,
+                        &mut pred[k0..k1],
+                    );
+                }
+                for ((o, &b), &c) in sc.mm[k0..k1].iter_mut().zip(&ml[k0..]).zip(&ml[k0 + 1..]) {
+                    *o = b as u32 + c as u32;
+                }
+                if around {
+                    for k in k0..k1 {
+                        sc.mm[k] += (mu[k] as u32 + mu[k + 1] as u32 + md[k] as u32 + md[k + 1] as u32) / 2;
+                    }
+                }
+            }
+            let line = row(y);
+            let ml = mrow(y);
+            for k in (0..k0).chain(k1..n) {
+                let x = s + k * st;
+                let get = |dd: isize| {
+                    let xx = x as isize + dd * s as isize;
+                    (xx >= 0 && (xx as usize) < w).then_some(xx as usize)
+                };
+                let (xa, xc, xd) = (get(-3), get(1), get(3));
+                let v = |j: usize| line[j].wide();
+                let (av, bv, cv, dv) = (xa.map(v), v(x - s), xc.map(v), xd.map(v));
+                pred[k] = T::of(interp1(av, bv, cv, dv).clamp(0, g.r.wide()));
+                sc.t[k] = T::of(edge_curv(av, bv, cv, dv));
+                sc.mm[k] = ml[x - s] as u32 + xc.map_or(0, |j| ml[j] as u32);
+            }
+        }
+        Kind::Vertical => {
+            for k in 0..n {
+                let x = k * st;
+                let i = y * w + x;
+                let get = |dd: isize| {
+                    let yy = y as isize + dd * s as isize;
+                    (yy >= 0 && (yy as usize) < h).then(|| (i as isize + dd * (w * s) as isize) as usize)
+                };
+                let ib = i - w * s;
+                let (ia, ic, id) = (get(-3), get(1), get(3));
+                let v = |j: usize| g.plane[j].wide();
+                let (av, bv, cv, dv) = (ia.map(v), v(ib), ic.map(v), id.map(v));
+                pred[k] = T::of(interp1(av, bv, cv, dv).clamp(0, g.r.wide()));
+                sc.t[k] = T::of(edge_curv(av, bv, cv, dv));
+                sc.mm[k] = g.mag[ib] as u32 + ic.map_or(0, |j| g.mag[j] as u32);
+            }
+        }
+    }
+    for ((o, &t), &m) in cb.iter_mut().zip(&sc.t[..n]).zip(&sc.mm[..n]) {
+        *o = kc.class(t.wide(), m);
+    }
+}
+
+/// The curvature where the support leaves the raster: as [`curv`] with all four points,
+/// |b − c| >> 1 with c, else 0.
+fn edge_curv(a: Option<i64>, b: i64, c: Option<i64>, d: Option<i64>) -> i64 {
+    match (a, c, d) {
+        (Some(a), Some(c), Some(d)) => (b + c - a - d).abs() + ((b - c).abs() >> 2),
+        (_, Some(c), _) => (b - c).abs() >> 1,
+        _ => 0,
+    }
+}
+
+/// Phase 2: what codes (encoder) or reads (decoder) the tokens of a row.
+pub(super) trait Tokens<T: Lane> {
+    /// The bins of a row's samples; `kinds`: the row's kinds at its samples' columns
+    /// (`None`: all coded); `src`: the sources (encoder).
+    fn row(&mut self, cb: &[u16], pred: &[T], src: &dyn Fn(usize) -> i64, kinds: Option<&dyn Fn(usize) -> u8>, bin: T, q: &mut [T]) -> Result<()>;
+}
+
+/// The encoder's record of a band: tokens with their context and state, the raw bits.
+#[derive(Default)]
+pub(super) struct Recorder {
+    pub syms: Vec<(u16, u8, u8)>,
+    pub raw: BitWriter,
+}
+
+impl<T: Lane> Tokens<T> for Recorder {
+    #[inline(always)]
+    fn row(&mut self, cb: &[u16], pred: &[T], src: &dyn Fn(usize) -> i64, kinds: Option<&dyn Fn(usize) -> u8>, bin: T, q: &mut [T]) -> Result<()> {
+        let bin = bin.wide();
+        for k in 0..q.len() {
+            if kinds.is_some_and(|kd| kd(k) != CODED) {
+                q[k] = T::of(0);
+                continue;
+            }
+            let b = if bin == 1 { src(k) - pred[k].wide() } else { quantize(src(k) - pred[k].wide(), bin) };
+            let (t, raw, nb) = token(varint::zigzag(b));
+            self.syms.push((cb[k], t, (k % 4) as u8));
+            if nb > 0 {
+                self.raw.put(raw, nb);
+            }
+            q[k] = T::of(b);
+        }
+        Ok(())
+    }
+}
+
+/// The decoder of one band's stream.
+pub(super) struct Reader<'a> {
+    pub ans: LanesDecoder<'a>,
+    pub raw: BitReader<'a>,
+    /// Per context, the first slot of its cluster's table.
+    pub base: &'a [u32],
+    pub max_bin: u64,
+}
+
+impl Reader<'_> {
+    /// A token ≥ 16's bin: exponent and top bit from the token, the rest raw.
+    #[cold]
+    fn escape(&mut self, t: u32) -> Result<i64> {
+        let t = t as u64;
+        let e = (t - 16) / 2 + 4;
+        let top = (t - 16) & 1;
+        let v = (1 << e) | (top << (e - 1)) | self.raw.get(e as u32 - 1)?;
+        if v >> 1 > self.max_bin {
+            return Err(Error::corrupt(
+                "residual section: a bin lies outside the section's value range",
+            ));
+        }
+        Ok(varint::unzigzag(v))
+    }
+
+    #[inline(always)]
+    fn one<T: Lane>(&mut self, lane: usize, ctx: usize) -> Result<T> {
+        let t = self.ans.symbol(lane, self.base[ctx] as usize)?;
+        Ok(if t < 16 { T::of(((t >> 1) as i64) ^ -((t & 1) as i64)) } else { T::of(self.escape(t)?) })
+    }
+}
+
+impl<T: Lane> Tokens<T> for Reader<'_> {
+    #[inline(always)]
+    fn row(&mut self, cb: &[u16], _pred: &[T], _src: &dyn Fn(usize) -> i64, kinds: Option<&dyn Fn(usize) -> u8>, _bin: T, q: &mut [T]) -> Result<()> {
+        let n = q.len();
+        let cb = &cb[..n];
+        if let Some(kd) = kinds {
+            for k in 0..n {
+                q[k] = if kd(k) != CODED { T::of(0) } else { self.one(k % 4, cb[k] as usize)? };
+            }
+            return Ok(());
+        }
+        let mut qs = q.chunks_exact_mut(4);
+        let mut cs = cb.chunks_exact(4);
+        for (q4, c4) in (&mut qs).zip(&mut cs) {
+            for l in 0..4 {
+                q4[l] = self.one(l, c4[l] as usize)?;
+            }
+        }
+        for (l, (q, &c)) in qs.into_remainder().iter_mut().zip(cs.remainder()).enumerate() {
+            *q = self.one(l, c as usize)?;
+        }
+        Ok(())
+    }
+}
+
+/// Phase 3: reconstructions clamp(pred + bin·q) and magnitudes min(|q|, 255).
+#[inline(always)]
+fn reconstruct<T: Lane>(pred: &[T], q: &[T], bin: T, r: T, rec: &mut [T], mag: &mut [u8]) {
+    let zero = T::of(0);
+    let n = rec.len();
+    let (pred, q, mag) = (&pred[..n], &q[..n], &mut mag[..n]);
+    for k in 0..n {
+        rec[k] = (pred[k] + bin * q[k]).clamp(zero, r);
+        let a = q[k].max(zero - q[k]);
+        mag[k] = a.min(T::of(255)).wide() as u8;
+    }
+}
+
+/// A band's reconstructions and magnitudes, pass row by pass row.
+pub(super) type BandBuf<T> = (Vec<T>, Vec<u8>);
+
+/// Run the pass rows k0..k1 of `pass` (not the anchors) into buffers of their own.
+#[inline(always)]
+pub(super) fn run_band<T: Lane, C: Tokens<T>>(g: &Global<T>, pass: &Pass, (k0, k1): (usize, usize), coder: &mut C) -> Result<BandBuf<T>> {
+    let w = g.w;
+    let cols = pass.cols(w);
+    let kc = PassK::<T>::new(pass);
+    let rows = k1 - k0;
+    let mut rec = vec![T::of(0); rows * cols];
+    let mut mag = vec![0u8; rows * cols];
+    let mut pred = vec![T::of(0); cols];
+    let mut cb = vec![0u16; cols];
+    let mut q = vec![T::of(0); cols];
+    let mut sc = Scratch::default();
+    for k in k0..k1 {
+        let y = pass.r0 + k * pass.rs;
+        predict_row(g, pass, &kc, y, &mut sc, &mut pred, &mut cb);
+        let at = |c: usize| y * w + pass.c0 + c * pass.cs;
+        let src = |c: usize| g.values[at(c)] - g.lo;
+        let j = (k - k0) * cols;
+        if g.coded_row(y) {
+            coder.row(&cb, &pred, &src, None, kc.bin, &mut q)?;
+            reconstruct(&pred, &q, kc.bin, g.r, &mut rec[j..j + cols], &mut mag[j..j + cols]);
+        } else {
+            let kd = |c: usize| g.kinds[at(c)];
+            coder.row(&cb, &pred, &src, Some(&kd), kc.bin, &mut q)?;
+            reconstruct(&pred, &q, kc.bin, g.r, &mut rec[j..j + cols], &mut mag[j..j + cols]);
+            for c in 0..cols {
+                if g.kinds[at(c)] == FIXED {
+                    rec[j + c] = T::of((g.values[at(c)] - g.lo).clamp(0, g.r.wide()));
+                }
+            }
+        }
+    }
+    Ok((rec, mag))
+}
+
+/// [`run_band`] as a `pulp` operation: its loops inlined into a function compiled for the
+/// instruction set `pulp::Arch::dispatch` finds.
+pub(super) struct Band<'a, 'g, T, C> {
+    pub g: &'a Global<'g, T>,
+    pub pass: &'a Pass,
+    pub band: (usize, usize),
+    pub coder: &'a mut C,
+}
+
+impl<T: Lane, C: Tokens<T>> pulp::WithSimd for Band<'_, '_, T, C> {
+    type Output = Result<BandBuf<T>>;
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) -> Self::Output {
+        run_band(self.g, self.pass, self.band, self.coder)
+    }
+}
+
+/// The anchors (one band): predicted sample by sample from the anchors before (MED), in
+/// row order.
+pub(super) fn run_anchors<T: Lane>(g: &Global<T>, pass: &Pass, coder: &mut dyn AnchorTokens) -> Result<BandBuf<T>> {
+    let w = g.w;
+    let (rows, cols) = (pass.rows(g.h), pass.cols(w));
+    let kc = PassK::<T>::new(pass);
+    let big = pass.s;
+    let mid = g.r.wide() / 2;
+    let mut rec = vec![T::of(0); rows * cols];
+    let mut mag = vec![0u8; rows * cols];
+    for k in 0..rows {
+        let y = k * big;
+        for col in 0..cols {
+            let x = col * big;
+            let (i, j) = (y * w + x, k * cols + col);
+            let up = k > 0;
+            let own = |j: usize| rec[j].wide();
+            let left = (col > 0).then(|| own(j - 1));
+            let top = up.then(|| own(j - cols));
+            let tl = (up && col > 0).then(|| own(j - cols - 1));
+            let tr = (up && col + 1 < cols).then(|| own(j - cols + 1));
+            let a = left.or(top).unwrap_or(mid);
+            let b = top.unwrap_or(a);
+            let c = tl.unwrap_or(a);
+            let d = tr.unwrap_or(b);
+            let p = if c >= a.max(b) {
+                a.min(b)
+            } else if c <= a.min(b) {
+                a.max(b)
+            } else {
+                a + b - c
+            };
+            let t = (a - c).abs() + (b - c).abs() + (d - b).abs();
+            let m = u32::from(if col > 0 { mag[j - 1] } else { 0 }) + u32::from(if up { mag[j - cols] } else { 0 });
+            let cbase = kc.class(t, m) as usize;
+            let kind = if g.kinds.is_empty() { CODED } else { g.kinds[i] };
+            let (r, q) = if kind == CODED {
+                let src = g.values.get(i).map_or(0, |v| v - g.lo);
+                let q = coder.one(col % 4, cbase, p, src, pass.bin)?;
+                ((p + pass.bin * q).clamp(0, g.r.wide()), q)
+            } else if kind == FIXED {
+                ((g.values[i] - g.lo).clamp(0, g.r.wide()), 0)
+            } else {
+                (p, 0)
+            };
+            rec[j] = T::of(r);
+            mag[j] = q.unsigned_abs().min(255) as u8;
+        }
+    }
+    Ok((rec, mag))
+}
+
+/// Codes or reads one anchor's bin.
+pub(super) trait AnchorTokens {
+    fn one(&mut self, lane: usize, ctx: usize, pred: i64, src: i64, bin: i64) -> Result<i64>;
+}
+
+impl AnchorTokens for Recorder {
+    fn one(&mut self, lane: usize, ctx: usize, pred: i64, src: i64, bin: i64) -> Result<i64> {
+        let b = quantize(src - pred, bin);
+        let (t, raw, nb) = token(varint::zigzag(b));
+        self.syms.push((ctx as u16, t, lane as u8));
+        if nb > 0 {
+            self.raw.put(raw, nb);
+        }
+        Ok(b)
+    }
+}
+
+impl AnchorTokens for Reader<'_> {
+    fn one(&mut self, lane: usize, ctx: usize, _: i64, _: i64, _: i64) -> Result<i64> {
+        Reader::one::<i64>(self, lane, ctx)
+    }
+}
+
+/// Write the bands' buffers into the planes, row by row on all threads.
+pub(super) fn scatter<T: Lane>(w: usize, pass: &Pass, bands: &[(usize, usize)], bufs: &[BandBuf<T>], plane: &mut [T], mag: &mut [u8]) {
+    let cols = pass.cols(w);
+    let (Some(&(first, next)), Some(&(_, end))) = (bands.first(), bands.last()) else {
+        return;
+    };
+    let per = (next - first).max(1);
+    plane.par_chunks_mut(w).zip(mag.par_chunks_mut(w)).enumerate().for_each(|(y, (rr, mr))| {
+        if y < pass.r0 || (y - pass.r0) % pass.rs != 0 {
+            return;
+        }
+        let k = (y - pass.r0) / pass.rs;
+        if k < first || k >= end {
+            return;
+        }
+        let b = (k - first) / per;
+        let Some((br, bm)) = bufs.get(b) else { return };
+        let from = (k - bands[b].0) * cols;
+        let (br, bm) = (&br[from..from + cols], &bm[from..from + cols]);
+        if pass.cs == 2 {
+            for (c, (&v, &m)) in br.iter().zip(bm).enumerate() {
+                rr[pass.c0 + 2 * c] = v;
+                mr[pass.c0 + 2 * c] = m;
+            }
+        } else {
+            for (c, (&v, &m)) in br.iter().zip(bm).enumerate() {
+                rr[pass.c0 + c * pass.cs] = v;
+                mr[pass.c0 + c * pass.cs] = m;
+            }
+        }
+    });
+}
+
+/// Stencil weights a lane section may hold: the coarser points' (the pass's own two are 0)
+/// within ±[`MAX_WEIGHT`].
+pub(super) fn weights_ok(w: &[i16; NW]) -> bool {
+    w[NCOARSE..].iter().all(|&v| v == 0) && w.iter().all(|&v| v.abs() <= MAX_WEIGHT)
+}
