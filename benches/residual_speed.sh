@@ -1,7 +1,8 @@
 #!/bin/bash
 # Speed of the residual layer against its peers on the same files, one run after the other:
-# vtz's fast coding (effort 1) and its range coding (effort 5, the default) on one thread,
-# the fast coding on two, then SZ3, LERC, JPEG XL and pcodec through the peers harness.
+# vtz's lane coding (effort 1), fast coding (effort 2) and range coding (effort 5, the
+# default) on one thread, the lane coding on two, then SZ3, LERC, JPEG XL and pcodec through
+# the peers harness.
 # Prints a Markdown table (benches/README.md, "the fast coding").
 #
 #   benches/residual_speed.sh PEERS_PYTHON FILE.f32...      (e.g. ../shared/tools/peers/.venv/bin/python)
@@ -13,7 +14,7 @@ x=$root/target/release/examples/residual_speed
 out=$(mktemp -d)
 for f in "$@"; do
   for b in lossless 1 1%; do
-    for e in 1 5; do echo "T1 $(RAYON_NUM_THREADS=1 $x "$f" $b $e 3)"; done
+    for e in 1 2 5; do echo "T1 $(RAYON_NUM_THREADS=1 $x "$f" $b $e 3)"; done
     echo "T2 $(RAYON_NUM_THREADS=2 $x "$f" $b 1 3)"
   done
 done > "$out/vtz.txt"

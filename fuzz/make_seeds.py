@@ -71,12 +71,14 @@ with tempfile.TemporaryDirectory() as tmp:
             put("readers", f"{name}.{fmt}", bytes([pick]) + body)
         for m, bound in (("sibson", "2%"), ("sibson", "1"), ("grid", "0"), ("grid", "1"), ("haar", "3"), ("fis", "5%"),
                          ("residual", "0"), ("residual", "1"), ("residual", "2%"),
-                         # effort 9: the compact range-coded codings (the default is the fast one)
-                         ("residual-e9", "0"), ("residual-e9", "1"), ("residual-e9", "2%")):
+                         # effort 9: the compact range-coded codings; 1 the lane coding, 2 the fast one
+                         ("residual-e9", "0"), ("residual-e9", "1"), ("residual-e9", "2%"),
+                         ("residual-e1", "0"), ("residual-e1", "1"), ("residual-e1", "2%"),
+                         ("residual-e2", "0"), ("residual-e2", "2%")):
             p = os.path.join(tmp, f"{name}_{m}_{bound.strip('%')}.vtz")
             args = ["encode", crop, "-o", p, "--method", m.split("-")[0], "--force", "-q"]
-            if m.endswith("-e9"):
-                args += ["--effort", "9"]
+            if "-e" in m:
+                args += ["--effort", m.split("-e")[1]]
             if bound != "0":
                 args += ["--max-error", bound]
             try:
@@ -92,7 +94,7 @@ with tempfile.TemporaryDirectory() as tmp:
         put("readers", "gdal_" + os.path.basename(p), bytes([5]) + open(p, "rb").read())
     # Lattices as wide as the residual layer takes (whole numbers up to ±2^38, alternating
     # extremes) and wider (f32 noise over ±3e38, mixed signs and magnitudes): every residual
-    # coding (efforts 1, 5, 9), lossless and lossy, and `best` (issue 35: overflow).
+    # coding (efforts 1, 2, 5, 9), lossless and lossy, and `best` (issue 35: overflow).
     wrng = random.Random(38)
     def f32_raster(name, w, h, values):
         path = os.path.join(tmp, name + ".f32")
@@ -110,7 +112,7 @@ with tempfile.TemporaryDirectory() as tmp:
     }
     for name, values in wide.items():
         src = f32_raster(name, 23, 19, values)
-        for m, bound, effort in (("residual", "0", "1"), ("residual", "0", "5"), ("residual", "0", "9"),
+        for m, bound, effort in (("residual", "0", "1"), ("residual", "0", "2"), ("residual", "0", "5"), ("residual", "0", "9"),
                                  ("residual", "1e30", "1"), ("residual", "1e30", "9"),
                                  ("residual", "1000", "5"), ("best", "0", "5"), ("best", "1e35", "5")):
             p = os.path.join(tmp, f"wide_{name}_{m}_{bound}_e{effort}.vtz")

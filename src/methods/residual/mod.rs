@@ -54,8 +54,9 @@ const EXCEPTION_BITS: f64 = 48.0;
 const MAX_SUBDIVISION: i64 = 16;
 
 /// The encoder effort without `--effort`. What each effort does in the residual layer
-/// (`codings`): 1–2 the fast coding, 3+ both range-coded predictors, 5+ also sub-lattice
-/// bins and narrower coarse bins, 6+ also the fast coding; the smallest kept.
+/// (`codings`): 1 the lane coding, 2 the fast coding, 3+ both range-coded predictors, 5+
+/// also sub-lattice bins and narrower coarse bins, 6+ also the fast coding; the smallest
+/// kept.
 pub const DEFAULT_EFFORT: u8 = 5;
 
 /// One way of coding the plane.
@@ -228,7 +229,8 @@ pub(crate) fn encode(
     }))
 }
 
-/// Which codings to try. Efforts 1–2: the fast coding alone, with narrower coarse-level
+/// Which codings to try. Effort 1: the lane coding alone (coding 4 or 5); effort 2: the
+/// fast coding alone (2 or 3); each with narrower coarse-level
 /// bins where bins are wide against the finest level's prediction error ([`fast::resolve`])
 /// and stencil corrections where the encoder reckons they pay. Efforts 3–4: the two range-coded predictors (multilevel
 /// interpolation, the weighted scan); 5 (the default) also interpolation with narrower
@@ -945,6 +947,7 @@ pub(crate) fn describe(payload: &[u8]) -> Result<(&'static str, u32, f64, u64, f
     let (name, levels) = match h.cfg {
         Predictor::Interp(c) => ("interpolation", c.levels),
         Predictor::Weighted => ("weighted", 0),
+        Predictor::Fast(c) if c.lanes => ("lane interpolation", c.levels),
         Predictor::Fast(c) => ("fast interpolation", c.levels),
     };
     Ok((name, levels, h.domain.unit(), h.bin, h.bound))

@@ -329,6 +329,8 @@ fn predict_row<T: Lane>(g: &Global<T>, pass: &Pass, kc: &PassK<T>, y: usize, sc:
             }
         }
         Kind::Vertical => {
+            // Edge rows (the support leaves the raster): few, sample by sample.
+            #[allow(clippy::needless_range_loop)]
             for k in 0..n {
                 let x = k * st;
                 let i = y * w + x;
