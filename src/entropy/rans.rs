@@ -148,6 +148,13 @@ impl DecTables {
         }
         DecTables { entries }
     }
+
+    /// Table k's slots (k below the number of tables).
+    pub fn table(&self, k: usize) -> &[u32; TOTAL as usize] {
+        self.entries[k * TOTAL as usize..(k + 1) * TOTAL as usize]
+            .try_into()
+            .expect("a whole table")
+    }
 }
 
 /// Encodes one stream. Symbols are given in stream order; [`StreamEncoder::finish`] codes
@@ -282,11 +289,10 @@ pub struct LanesDecoder<'a> {
     x: [u32; STATES],
     bytes: &'a [u8],
     pos: usize,
-    tables: &'a [u32],
 }
 
 impl<'a> LanesDecoder<'a> {
-    pub fn new(bytes: &'a [u8], tables: &'a DecTables) -> Result<LanesDecoder<'a>> {
+    pub fn new(bytes: &'a [u8]) -> Result<LanesDecoder<'a>> {
         let Some(first) = bytes.get(..4 * STATES) else {
             return Err(corrupt("an entropy stream is shorter than its states"));
         };
@@ -301,16 +307,15 @@ impl<'a> LanesDecoder<'a> {
             x,
             bytes,
             pos: 4 * STATES,
-            tables: &tables.entries,
         })
     }
 
-    /// The next symbol of state `lane` (< [`STATES`]) from the table starting at slot
-    /// `base` (k·[`TOTAL`]).
+    /// The next symbol of state `lane` (< [`STATES`]) from `table` (one of
+    /// [`DecTables::table`]).
     #[inline(always)]
-    pub fn symbol(&mut self, lane: usize, base: usize) -> Result<u32> {
+    pub fn symbol(&mut self, lane: usize, table: &[u32; TOTAL as usize]) -> Result<u32> {
         let x = self.x[lane];
-        let e = self.tables[base + (x & (TOTAL - 1)) as usize];
+        let e = table[(x & (TOTAL - 1)) as usize];
         let mut x = ((e >> 12) & 0x1fff) * (x >> PREC) + (e & 0xfff);
         if x < LOW {
             let Some(w) = self.bytes.get(self.pos..self.pos + 2) else {

@@ -805,7 +805,7 @@ fn decode_marked(
             fast::Rec::I64(v, o) => fast::Rec::I64(crate::methods::decimate(v, w, h, stop), *o),
         };
         let kinds = if kinds.is_empty() { kinds } else { crate::methods::decimate(&kinds, w, h, stop) };
-        let mut out = lattice_values(&rec, &kinds, fill, domain, header, ow, Window::full(ow, oh));
+        let mut out = lattice_values(&rec, &kinds, fill, domain, header, ow, Window::full(ow, oh), (lo, hi));
         if let Some(f) = flat {
             for (j, o) in out.iter_mut().enumerate() {
                 if let Some(v) = f.value_at((j / ow) * s * w + (j % ow) * s) {
@@ -821,7 +821,7 @@ fn decode_marked(
         }
         return Ok(out);
     }
-    let mut out = lattice_values(&rec, &kinds, fill, domain, header, w, win);
+    let mut out = lattice_values(&rec, &kinds, fill, domain, header, w, win, (lo, hi));
     if let Some(f) = flat {
         f.overwrite(&mut out, w, (win.x, win.y, win.width, win.height));
     }
@@ -839,10 +839,32 @@ fn decode_marked(
 /// multiplication, division and rounding where the lattice is the integers and the sample
 /// type's codes are the values (the same result: every step is exact). The case is chosen
 /// once, so the loop over the samples holds no branch but the kinds'.
-fn lattice_values(rec: &fast::Rec, kinds: &[u8], fill: f64, domain: Domain, header: &Header, w: usize, win: Window) -> Vec<f64> {
+#[allow(clippy::too_many_arguments)]
+fn lattice_values(
+    rec: &fast::Rec,
+    kinds: &[u8],
+    fill: f64,
+    domain: Domain,
+    header: &Header,
+    w: usize,
+    win: Window,
+    range: (i64, i64),
+) -> Vec<f64> {
+    // The section's own range lies inside the type's: the clamp to it is a no-op, and
+    // leaving it out keeps the loop a plain conversion (the same values).
+    let within = header
+        .sample_type
+        .int_range()
+        .is_some_and(|(a, b)| a <= range.0 as f64 && range.1 as f64 <= b);
     match rec {
-        fast::Rec::I32(v, o) => lattice_values_of(v, |k| k as i64 + o, kinds, fill, domain, header, w, win),
-        fast::Rec::I64(v, o) => lattice_values_of(v, |k| k + o, kinds, fill, domain, header, w, win),
+        // (k + o in f64 is the index exactly: |k| < 2^31, |o| ≤ 2^38; and it vectorises.)
+        fast::Rec::I32(v, o) => {
+            let of = *o as f64;
+            lattice_values_of(v, |k| k as f64 + of, |k| k as i64 + o, kinds, fill, domain, header, w, win, within)
+        }
+        fast::Rec::I64(v, o) => {
+            lattice_values_of(v, |k| (k + o) as f64, |k| k + o, kinds, fill, domain, header, w, win, within)
+        }
     }
 }
 
@@ -851,6 +873,7 @@ fn lattice_values(rec: &fast::Rec, kinds: &[u8], fill: f64, domain: Domain, head
 #[inline(always)]
 fn lattice_values_of<V: Copy + Sync>(
     rec: &[V],
+    index_f: impl Fn(V) -> f64 + Sync + Copy,
     index: impl Fn(V) -> i64 + Sync + Copy,
     kinds: &[u8],
     fill: f64,
@@ -858,6 +881,7 @@ fn lattice_values_of<V: Copy + Sync>(
     header: &Header,
     w: usize,
     win: Window,
+    within: bool,
 ) -> Vec<f64> {
     let at = (w, win);
     let ident = domain.mul == 1.0 && domain.div == 1.0 && domain.offset == 0.0;
@@ -865,8 +889,9 @@ fn lattice_values_of<V: Copy + Sync>(
         .then(|| header.sample_type.int_range())
         .flatten();
     match (ident, int_codes) {
-        (true, Some((lo, hi))) => map_values(rec, kinds, fill, at, |k| (index(k) as f64).clamp(lo, hi)),
-        (true, None) => map_values(rec, kinds, fill, at, |k| crate::quant::finish_value(index(k) as f64, header)),
+        (true, Some(_)) if within => map_values(rec, kinds, fill, at, index_f),
+        (true, Some((lo, hi))) => map_values(rec, kinds, fill, at, |k| index_f(k).clamp(lo, hi)),
+        (true, None) => map_values(rec, kinds, fill, at, |k| crate::quant::finish_value(index_f(k), header)),
         _ => map_values(rec, kinds, fill, at, |k| finish_value(domain.raw(index(k)), header)),
     }
 }
@@ -887,23 +912,46 @@ fn map_values<V: Copy + Sync>(
         return out;
     }
     let rows = (CHUNK / ww).max(1);
+    let arch = pulp::Arch::new();
     out.par_chunks_mut(rows * ww).enumerate().for_each(|(c, o)| {
         for (r, o) in o.chunks_mut(ww).enumerate() {
             let at = (win.y + c * rows + r) * w + win.x;
             let rr = &rec[at..at + ww];
-            if kinds.is_empty() {
-                for (o, &k) in o.iter_mut().zip(rr) {
-                    *o = value(k);
-                }
-            } else {
-                let kd = &kinds[at..at + ww];
-                for ((o, &k), &kind) in o.iter_mut().zip(rr).zip(kd) {
-                    *o = if kind == SKIPPED { fill } else { value(k) };
-                }
-            }
+            let kd = (!kinds.is_empty()).then(|| &kinds[at..at + ww]);
+            arch.dispatch(ValueRow { out: o, rec: rr, kinds: kd, fill, value: &value });
         }
     });
     out
+}
+
+/// One row of [`map_values`] as a `pulp` operation (compiled for the processor's vector
+/// instructions: the conversion to f64 and the clamp vectorise).
+struct ValueRow<'a, V, F> {
+    out: &'a mut [f64],
+    rec: &'a [V],
+    kinds: Option<&'a [u8]>,
+    fill: f64,
+    value: &'a F,
+}
+
+impl<V: Copy, F: Fn(V) -> f64> pulp::WithSimd for ValueRow<'_, V, F> {
+    type Output = ();
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        let value = self.value;
+        match self.kinds {
+            None => {
+                for (o, &k) in self.out.iter_mut().zip(self.rec) {
+                    *o = value(k);
+                }
+            }
+            Some(kd) => {
+                for ((o, &k), &kind) in self.out.iter_mut().zip(self.rec).zip(kd) {
+                    *o = if kind == SKIPPED { self.fill } else { value(k) };
+                }
+            }
+        }
+    }
 }
 
 /// The narrowest bin width of an interpolation coding with `levels` levels.

@@ -13,7 +13,7 @@ use super::super::coder::quantize;
 use super::super::interp::interp1;
 use super::super::plane::{CODED, FIXED};
 use super::passes::{FINE, Kind, NCOARSE, NW, Pass, half_log, token};
-use crate::entropy::rans::{BitReader, BitWriter, LanesDecoder};
+use crate::entropy::rans::{self, BitReader, BitWriter, LanesDecoder};
 use crate::entropy::varint;
 use crate::error::{Error, Result};
 use rayon::prelude::*;
@@ -88,9 +88,24 @@ pub(super) struct Global<'a, T> {
     pub row_coded: &'a [bool],
     /// Source (encoder) or fixed values (decoder), absolute lattice units.
     pub values: &'a [i64],
-    /// The planes so far: value − lo, and min(|bin|, 255).
-    pub plane: &'a [T],
-    pub mag: &'a [u8],
+}
+
+/// The planes so far (value − lo, and min(|bin|, 255)): shared by bands running side by
+/// side (each writes a buffer of its own, then [`scatter`]), or held by the one band
+/// running, which writes its rows straight into them.
+pub(super) enum Planes<'a, T> {
+    Shared(&'a [T], &'a [u8]),
+    Own(&'a mut [T], &'a mut [u8]),
+}
+
+impl<T> Planes<'_, T> {
+    #[inline(always)]
+    fn get(&self) -> (&[T], &[u8]) {
+        match self {
+            Planes::Shared(p, m) => (p, m),
+            Planes::Own(p, m) => (p, m),
+        }
+    }
 }
 
 impl<T: Lane> Global<'_, T> {
@@ -136,7 +151,7 @@ fn corrected<T: Lane>(base: T, taps: [T; NCOARSE], wts: &[T; NCOARSE]) -> T {
 #[derive(Clone, Copy)]
 struct PassK<T> {
     bin: T,
-    bin64: u64,
+    binf: f64,
     hl_bin: u32,
     /// The group's first context (previous token 0, class 0).
     first: u16,
@@ -147,7 +162,7 @@ impl<T: Lane> PassK<T> {
     fn new(pass: &Pass) -> PassK<T> {
         PassK {
             bin: T::of(pass.bin),
-            bin64: pass.bin as u64,
+            binf: pass.bin as f64,
             hl_bin: half_log(pass.bin as u64),
             first: (pass.group * FINE) as u16,
             wts: pass.weights.map(|w| std::array::from_fn(|k| T::of(w[k] as i64))),
@@ -157,9 +172,14 @@ impl<T: Lane> PassK<T> {
     /// The context base of a sample: the group's, plus the class of the energy
     /// 4·t + bin·(4m + 1) in half octaves above the bin's.
     #[inline(always)]
-    fn class(&self, t: i64, m: u32) -> u16 {
-        let e = 4 * t as u64 + self.bin64 * (4 * m as u64 + 1);
-        self.first + (half_log(e) - self.hl_bin).min(FINE as u32 - 1) as u16
+    ///
+    /// Computed in f64, exactly (4t < 2^44, bin·(4m + 1) < 2^38·2^12: every value and the
+    /// sum are whole numbers below 2^53), so that it vectorises: the exponent and the top
+    /// mantissa bit of e's bits are hl(e) + 2·1023.
+    fn class(&self, t: T, m: i32) -> u16 {
+        let e = 4.0 * t.wide() as f64 + self.binf * (4 * m + 1) as f64;
+        let hl = ((e.to_bits() >> 51) as u32).wrapping_sub(2 * 1023);
+        self.first + hl.wrapping_sub(self.hl_bin).min(FINE as u32 - 1) as u16
     }
 }
 
@@ -181,7 +201,7 @@ pub(super) struct Scratch<T> {
     g: [Vec<T>; 4],
     m: [Vec<u8>; 4],
     t: Vec<T>,
-    mm: Vec<u32>,
+    mm: Vec<i32>,
 }
 
 /// Predictions from four supports, corrected where `taps` gives the stencil's points:
@@ -212,12 +232,22 @@ fn stencil_rows<T: Lane>(taps: [&[T]; NCOARSE], wt: &[T; NCOARSE], r: T, pred: &
 /// Phase 1 of a pass row: predictions (clamped to 0 ..= r) and context bases of the row's
 /// `n` samples, from coarser passes only.
 #[inline(always)]
-fn predict_row<T: Lane>(g: &Global<T>, pass: &Pass, kc: &PassK<T>, y: usize, sc: &mut Scratch<T>, pred: &mut [T], cb: &mut [u16]) {
+#[allow(clippy::too_many_arguments)]
+fn predict_row<T: Lane>(
+    g: &Global<T>,
+    (plane, mag): (&[T], &[u8]),
+    pass: &Pass,
+    kc: &PassK<T>,
+    y: usize,
+    sc: &mut Scratch<T>,
+    pred: &mut [T],
+    cb: &mut [u16],
+) {
     let (w, h, s) = (g.w, g.h, pass.s);
     let n = pred.len();
     let st = 2 * s;
-    let row = |d: usize| &g.plane[d * w..(d + 1) * w];
-    let mrow = |d: usize| &g.mag[d * w..(d + 1) * w];
+    let row = |d: usize| &plane[d * w..(d + 1) * w];
+    let mrow = |d: usize| &mag[d * w..(d + 1) * w];
     sc.t.resize(n, T::of(0));
     sc.mm.resize(n, 0);
     match pass.kind {
@@ -253,12 +283,14 @@ fn predict_row<T: Lane>(g: &Global<T>, pass: &Pass, kc: &PassK<T>, y: usize, sc:
                 }
             }
             for ((o, &b), &c) in sc.mm.iter_mut().zip(&mb[..n]).zip(&mc[..n]) {
-                *o = b as u32 + c as u32;
+                *o = b as i32 + c as i32;
             }
             // Interior columns add half the four diagonal neighbours' (rows y ± s, x ± 2s).
             if n >= 3 {
-                for k in 1..n - 1 {
-                    sc.mm[k] += (mb[k - 1] as u32 + mb[k + 1] as u32 + mc[k - 1] as u32 + mc[k + 1] as u32) / 2;
+                let m = n - 2;
+                let it = sc.mm[1..n - 1].iter_mut().zip(&mb[..m]).zip(&mb[2..n]).zip(&mc[..m]).zip(&mc[2..n]);
+                for ((((o, &b0), &b1), &c0), &c1) in it {
+                    *o += (b0 as i32 + b1 as i32 + c0 as i32 + c1 as i32) >> 1;
                 }
             }
         }
@@ -304,11 +336,12 @@ fn predict_row<T: Lane>(g: &Global<T>, pass: &Pass, kc: &PassK<T>, y: usize, sc:
                     );
                 }
                 for ((o, &b), &c) in sc.mm[k0..k1].iter_mut().zip(&ml[k0..]).zip(&ml[k0 + 1..]) {
-                    *o = b as u32 + c as u32;
+                    *o = b as i32 + c as i32;
                 }
                 if around {
-                    for k in k0..k1 {
-                        sc.mm[k] += (mu[k] as u32 + mu[k + 1] as u32 + md[k] as u32 + md[k + 1] as u32) / 2;
+                    let it = sc.mm[k0..k1].iter_mut().zip(&mu[k0..]).zip(&mu[k0 + 1..]).zip(&md[k0..]).zip(&md[k0 + 1..]);
+                    for ((((o, &u0), &u1), &d0), &d1) in it {
+                        *o += (u0 as i32 + u1 as i32 + d0 as i32 + d1 as i32) >> 1;
                     }
                 }
             }
@@ -325,7 +358,7 @@ fn predict_row<T: Lane>(g: &Global<T>, pass: &Pass, kc: &PassK<T>, y: usize, sc:
                 let (av, bv, cv, dv) = (xa.map(v), v(x - s), xc.map(v), xd.map(v));
                 pred[k] = T::of(interp1(av, bv, cv, dv).clamp(0, g.r.wide()));
                 sc.t[k] = T::of(edge_curv(av, bv, cv, dv));
-                sc.mm[k] = ml[x - s] as u32 + xc.map_or(0, |j| ml[j] as u32);
+                sc.mm[k] = ml[x - s] as i32 + xc.map_or(0, |j| ml[j] as i32);
             }
         }
         Kind::Vertical => {
@@ -340,16 +373,16 @@ fn predict_row<T: Lane>(g: &Global<T>, pass: &Pass, kc: &PassK<T>, y: usize, sc:
                 };
                 let ib = i - w * s;
                 let (ia, ic, id) = (get(-3), get(1), get(3));
-                let v = |j: usize| g.plane[j].wide();
+                let v = |j: usize| plane[j].wide();
                 let (av, bv, cv, dv) = (ia.map(v), v(ib), ic.map(v), id.map(v));
                 pred[k] = T::of(interp1(av, bv, cv, dv).clamp(0, g.r.wide()));
                 sc.t[k] = T::of(edge_curv(av, bv, cv, dv));
-                sc.mm[k] = g.mag[ib] as u32 + ic.map_or(0, |j| g.mag[j] as u32);
+                sc.mm[k] = mag[ib] as i32 + ic.map_or(0, |j| mag[j] as i32);
             }
         }
     }
     for ((o, &t), &m) in cb.iter_mut().zip(&sc.t[..n]).zip(&sc.mm[..n]) {
-        *o = kc.class(t.wide(), m);
+        *o = kc.class(t, m);
     }
 }
 
@@ -387,12 +420,13 @@ impl<T: Lane> Tokens<T> for Recorder {
                 continue;
             }
             let b = if bin == 1 { src(k) - pred[k].wide() } else { quantize(src(k) - pred[k].wide(), bin) };
-            let (t, raw, nb) = token(varint::zigzag(b));
+            let v = varint::zigzag(b);
+            let (t, raw, nb) = token(v);
             self.syms.push((cb[k], t, (k % 4) as u8));
             if nb > 0 {
                 self.raw.put(raw, nb);
             }
-            q[k] = T::of(b);
+            q[k] = T::of(v as i64);
         }
         Ok(())
     }
@@ -402,13 +436,14 @@ impl<T: Lane> Tokens<T> for Recorder {
 pub(super) struct Reader<'a> {
     pub ans: LanesDecoder<'a>,
     pub raw: BitReader<'a>,
-    /// Per context, the first slot of its cluster's table.
-    pub base: &'a [u32],
+    /// Per context, its cluster's table (padded to 256 entries, so the context's 8 bits
+    /// index them without a check).
+    pub tables: &'a [&'a [u32; rans::TOTAL as usize]; 256],
     pub max_bin: u64,
 }
 
 impl Reader<'_> {
-    /// A token ≥ 16's bin: exponent and top bit from the token, the rest raw.
+    /// A token ≥ 16's zig-zagged bin: exponent and top bit from the token, the rest raw.
     #[cold]
     fn escape(&mut self, t: u32) -> Result<i64> {
         let t = t as u64;
@@ -420,13 +455,14 @@ impl Reader<'_> {
                 "residual section: a bin lies outside the section's value range",
             ));
         }
-        Ok(varint::unzigzag(v))
+        Ok(v as i64)
     }
 
+    /// The next token's zig-zagged bin.
     #[inline(always)]
-    fn one<T: Lane>(&mut self, lane: usize, ctx: usize) -> Result<T> {
-        let t = self.ans.symbol(lane, self.base[ctx] as usize)?;
-        Ok(if t < 16 { T::of(((t >> 1) as i64) ^ -((t & 1) as i64)) } else { T::of(self.escape(t)?) })
+    fn one<T: Lane>(&mut self, lane: usize, ctx: u16) -> Result<T> {
+        let t = self.ans.symbol(lane, self.tables[(ctx & 255) as usize])?;
+        Ok(if t < 16 { T::of(t as i64) } else { T::of(self.escape(t)?) })
     }
 }
 
@@ -437,7 +473,7 @@ impl<T: Lane> Tokens<T> for Reader<'_> {
         let cb = &cb[..n];
         if let Some(kd) = kinds {
             for k in 0..n {
-                q[k] = if kd(k) != CODED { T::of(0) } else { self.one(k % 4, cb[k] as usize)? };
+                q[k] = if kd(k) != CODED { T::of(0) } else { self.one(k % 4, cb[k])? };
             }
             return Ok(());
         }
@@ -445,26 +481,32 @@ impl<T: Lane> Tokens<T> for Reader<'_> {
         let mut cs = cb.chunks_exact(4);
         for (q4, c4) in (&mut qs).zip(&mut cs) {
             for l in 0..4 {
-                q4[l] = self.one(l, c4[l] as usize)?;
+                q4[l] = self.one(l, c4[l])?;
             }
         }
         for (l, (q, &c)) in qs.into_remainder().iter_mut().zip(cs.remainder()).enumerate() {
-            *q = self.one(l, c as usize)?;
+            *q = self.one(l, c)?;
         }
         Ok(())
     }
 }
 
-/// Phase 3: reconstructions clamp(pred + bin·q) and magnitudes min(|q|, 255).
+/// Phase 3: from zig-zagged bins v (b = v/2 or −(v+1)/2), reconstructions
+/// clamp(pred + bin·b) and magnitudes min(|b|, 255).
 #[inline(always)]
 fn reconstruct<T: Lane>(pred: &[T], q: &[T], bin: T, r: T, rec: &mut [T], mag: &mut [u8]) {
     let zero = T::of(0);
     let n = rec.len();
     let (pred, q, mag) = (&pred[..n], &q[..n], &mut mag[..n]);
     for k in 0..n {
-        rec[k] = (pred[k] + bin * q[k]).clamp(zero, r);
-        let a = q[k].max(zero - q[k]);
-        mag[k] = a.min(T::of(255)).wide() as u8;
+        let v = q[k];
+        let half = v >> 1;
+        // v odd: b = −half − 1 = half − v; even: b = half.
+        let odd = v - half - half;
+        let b = half - odd * v;
+        rec[k] = (pred[k] + bin * b).clamp(zero, r);
+        // |b| = v − half.
+        mag[k] = (v - half).min(T::of(255)).wide() as u8;
     }
 }
 
@@ -473,11 +515,18 @@ pub(super) type BandBuf<T> = (Vec<T>, Vec<u8>);
 
 /// Run the pass rows k0..k1 of `pass` (not the anchors) into buffers of their own.
 #[inline(always)]
-pub(super) fn run_band<T: Lane, C: Tokens<T>>(g: &Global<T>, pass: &Pass, (k0, k1): (usize, usize), coder: &mut C) -> Result<BandBuf<T>> {
+pub(super) fn run_band<T: Lane, C: Tokens<T>>(
+    g: &Global<T>,
+    planes: &mut Planes<T>,
+    pass: &Pass,
+    (k0, k1): (usize, usize),
+    coder: &mut C,
+) -> Result<BandBuf<T>> {
     let w = g.w;
     let cols = pass.cols(w);
     let kc = PassK::<T>::new(pass);
-    let rows = k1 - k0;
+    let own = matches!(planes, Planes::Own(..));
+    let rows = if own { 1 } else { k1 - k0 };
     let mut rec = vec![T::of(0); rows * cols];
     let mut mag = vec![0u8; rows * cols];
     let mut pred = vec![T::of(0); cols];
@@ -486,41 +535,63 @@ pub(super) fn run_band<T: Lane, C: Tokens<T>>(g: &Global<T>, pass: &Pass, (k0, k
     let mut sc = Scratch::default();
     for k in k0..k1 {
         let y = pass.r0 + k * pass.rs;
-        predict_row(g, pass, &kc, y, &mut sc, &mut pred, &mut cb);
+        predict_row(g, planes.get(), pass, &kc, y, &mut sc, &mut pred, &mut cb);
         let at = |c: usize| y * w + pass.c0 + c * pass.cs;
         let src = |c: usize| g.values[at(c)] - g.lo;
-        let j = (k - k0) * cols;
+        let j = if own { 0 } else { (k - k0) * cols };
+        let (rr, mr) = (&mut rec[j..j + cols], &mut mag[j..j + cols]);
         if g.coded_row(y) {
             coder.row(&cb, &pred, &src, None, kc.bin, &mut q)?;
-            reconstruct(&pred, &q, kc.bin, g.r, &mut rec[j..j + cols], &mut mag[j..j + cols]);
+            reconstruct(&pred, &q, kc.bin, g.r, rr, mr);
         } else {
             let kd = |c: usize| g.kinds[at(c)];
             coder.row(&cb, &pred, &src, Some(&kd), kc.bin, &mut q)?;
-            reconstruct(&pred, &q, kc.bin, g.r, &mut rec[j..j + cols], &mut mag[j..j + cols]);
+            reconstruct(&pred, &q, kc.bin, g.r, rr, mr);
             for c in 0..cols {
                 if g.kinds[at(c)] == FIXED {
-                    rec[j + c] = T::of((g.values[at(c)] - g.lo).clamp(0, g.r.wide()));
+                    rr[c] = T::of((g.values[at(c)] - g.lo).clamp(0, g.r.wide()));
                 }
             }
+        }
+        if let Planes::Own(p, m) = planes {
+            let line = y * w + pass.c0..(y + 1) * w;
+            put_row(&mut p[line.clone()], pass.cs, rr);
+            put_row(&mut m[line], pass.cs, mr);
         }
     }
     Ok((rec, mag))
 }
 
+/// `out[k·cs] = row[k]`.
+#[inline(always)]
+fn put_row<V: Copy>(out: &mut [V], cs: usize, row: &[V]) {
+    if cs == 2 {
+        // A constant stride: the stores vectorise.
+        for (ch, &v) in out.chunks_mut(2).zip(row) {
+            ch[0] = v;
+        }
+    } else {
+        for (ch, &v) in out.chunks_mut(cs).zip(row) {
+            ch[0] = v;
+        }
+    }
+}
+
 /// [`run_band`] as a `pulp` operation: its loops inlined into a function compiled for the
 /// instruction set `pulp::Arch::dispatch` finds.
-pub(super) struct Band<'a, 'g, T, C> {
+pub(super) struct Band<'a, 'g, 'p, T, C> {
     pub g: &'a Global<'g, T>,
+    pub planes: &'a mut Planes<'p, T>,
     pub pass: &'a Pass,
     pub band: (usize, usize),
     pub coder: &'a mut C,
 }
 
-impl<T: Lane, C: Tokens<T>> pulp::WithSimd for Band<'_, '_, T, C> {
+impl<T: Lane, C: Tokens<T>> pulp::WithSimd for Band<'_, '_, '_, T, C> {
     type Output = Result<BandBuf<T>>;
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _: S) -> Self::Output {
-        run_band(self.g, self.pass, self.band, self.coder)
+        run_band(self.g, self.planes, self.pass, self.band, self.coder)
     }
 }
 
@@ -557,8 +628,8 @@ pub(super) fn run_anchors<T: Lane>(g: &Global<T>, pass: &Pass, coder: &mut dyn A
                 a + b - c
             };
             let t = (a - c).abs() + (b - c).abs() + (d - b).abs();
-            let m = u32::from(if col > 0 { mag[j - 1] } else { 0 }) + u32::from(if up { mag[j - cols] } else { 0 });
-            let cbase = kc.class(t, m) as usize;
+            let m = i32::from(if col > 0 { mag[j - 1] } else { 0 }) + i32::from(if up { mag[j - cols] } else { 0 });
+            let cbase = kc.class(T::of(t), m) as usize;
             let kind = if g.kinds.is_empty() { CODED } else { g.kinds[i] };
             let (r, q) = if kind == CODED {
                 let src = g.values.get(i).map_or(0, |v| v - g.lo);
@@ -595,7 +666,7 @@ impl AnchorTokens for Recorder {
 
 impl AnchorTokens for Reader<'_> {
     fn one(&mut self, lane: usize, ctx: usize, _: i64, _: i64, _: i64) -> Result<i64> {
-        Reader::one::<i64>(self, lane, ctx)
+        Ok(varint::unzigzag(Reader::one::<i64>(self, lane, ctx as u16)? as u64))
     }
 }
 
@@ -617,18 +688,8 @@ pub(super) fn scatter<T: Lane>(w: usize, pass: &Pass, bands: &[(usize, usize)], 
         let b = (k - first) / per;
         let Some((br, bm)) = bufs.get(b) else { return };
         let from = (k - bands[b].0) * cols;
-        let (br, bm) = (&br[from..from + cols], &bm[from..from + cols]);
-        if pass.cs == 2 {
-            for (c, (&v, &m)) in br.iter().zip(bm).enumerate() {
-                rr[pass.c0 + 2 * c] = v;
-                mr[pass.c0 + 2 * c] = m;
-            }
-        } else {
-            for (c, (&v, &m)) in br.iter().zip(bm).enumerate() {
-                rr[pass.c0 + c * pass.cs] = v;
-                mr[pass.c0 + c * pass.cs] = m;
-            }
-        }
+        put_row(&mut rr[pass.c0..], pass.cs, &br[from..from + cols]);
+        put_row(&mut mr[pass.c0..], pass.cs, &bm[from..from + cols]);
     });
 }
 

@@ -358,7 +358,10 @@ pub fn decode(
     }
     let pick = needed(&passes, &bands, h, rows);
     if lanes {
-        let base: Vec<u32> = base.iter().map(|&b| b as u32).collect();
+        let mut tabs = [dec.table(0); 256];
+        for (o, &c) in tabs.iter_mut().zip(&map) {
+            *o = dec.table(c);
+        }
         let mut next_w = weights.iter();
         let mut passes = passes;
         for pass in &mut passes {
@@ -380,9 +383,9 @@ pub fn decode(
         let make = |k: usize, b: usize| -> Result<lanes::Reader> {
             let (a, r) = slices[firsts[k] + chosen[k].start + b];
             Ok(lanes::Reader {
-                ans: rans::LanesDecoder::new(a, &dec)?,
+                ans: rans::LanesDecoder::new(a)?,
                 raw: BitReader::new(r, "raw bits"),
-                base: &base,
+                tables: &tabs,
                 max_bin,
             })
         };
@@ -519,35 +522,42 @@ where
         if picked.is_empty() {
             continue;
         }
-        let bufs: Vec<(lanes::BandBuf<T>, X)> = {
-            let g = lanes::Global {
-                w,
-                h,
-                r: T::of(p.hi - p.lo),
-                lo: p.lo,
-                kinds: if all_coded { &[] } else { p.kinds },
-                row_coded: if all_coded { &[] } else { &row_coded },
-                values: p.values,
-                plane: &plane,
-                mag: &mag,
-            };
-            let arch = pulp::Arch::new();
-            let one = |b: usize, band: (usize, usize)| -> Result<(lanes::BandBuf<T>, X)> {
-                let mut c = make(k, b)?;
-                let buf = if pass.kind == Kind::Anchor {
-                    lanes::run_anchors(&g, pass, &mut c)?
-                } else {
-                    // The band's loops compiled for the best instruction set this processor has.
-                    arch.dispatch(lanes::Band { g: &g, pass, band, coder: &mut c })?
-                };
-                Ok((buf, done(c)?))
-            };
-            if picked.len() == 1 || rayon::current_num_threads() == 1 {
-                picked.iter().enumerate().map(|(b, &band)| one(b, band)).collect::<Result<_>>()?
-            } else {
-                picked.par_iter().enumerate().map(|(b, &band)| one(b, band)).collect::<Result<_>>()?
-            }
+        let g = lanes::Global {
+            w,
+            h,
+            r: T::of(p.hi - p.lo),
+            lo: p.lo,
+            kinds: if all_coded { &[] } else { p.kinds },
+            row_coded: if all_coded { &[] } else { &row_coded },
+            values: p.values,
         };
+        let arch = pulp::Arch::new();
+        if pass.kind == Kind::Anchor || picked.len() == 1 || rayon::current_num_threads() == 1 {
+            // One band at a time, straight into the planes.
+            for (b, &band) in picked.iter().enumerate() {
+                let mut c = make(k, b)?;
+                if pass.kind == Kind::Anchor {
+                    let bufs = [lanes::run_anchors(&g, pass, &mut c)?];
+                    lanes::scatter(w, pass, picked, &bufs, &mut plane, &mut mag);
+                } else {
+                    let mut planes = lanes::Planes::Own(&mut plane, &mut mag);
+                    // The band's loops compiled for the best instruction set this processor has.
+                    arch.dispatch(lanes::Band { g: &g, planes: &mut planes, pass, band, coder: &mut c })?;
+                }
+                out.push(done(c)?);
+            }
+            continue;
+        }
+        let bufs: Vec<(lanes::BandBuf<T>, X)> = picked
+            .par_iter()
+            .enumerate()
+            .map(|(b, &band)| {
+                let mut c = make(k, b)?;
+                let mut planes = lanes::Planes::Shared(&plane, &mag);
+                let buf = arch.dispatch(lanes::Band { g: &g, planes: &mut planes, pass, band, coder: &mut c })?;
+                Ok((buf, done(c)?))
+            })
+            .collect::<Result<_>>()?;
         let (bufs, xs): (Vec<_>, Vec<_>) = bufs.into_iter().unzip();
         lanes::scatter(w, pass, picked, &bufs, &mut plane, &mut mag);
         out.extend(xs);
