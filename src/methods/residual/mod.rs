@@ -860,10 +860,12 @@ fn lattice_values(
         // (k + o in f64 is the index exactly: |k| < 2^31, |o| ≤ 2^38; and it vectorises.)
         fast::Rec::I32(v, o) => {
             let of = *o as f64;
-            lattice_values_of(v, |k| k as f64 + of, |k| k as i64 + o, kinds, fill, domain, header, w, win, within)
+            let o = *o;
+            lattice_values_of(v, move |k| k as f64 + of, move |k| k as i64 + o, kinds, fill, domain, header, w, win, within)
         }
         fast::Rec::I64(v, o) => {
-            lattice_values_of(v, |k| (k + o) as f64, |k| k + o, kinds, fill, domain, header, w, win, within)
+            let o = *o;
+            lattice_values_of(v, move |k| (k + o) as f64, move |k| k + o, kinds, fill, domain, header, w, win, within)
         }
     }
 }
@@ -890,7 +892,7 @@ fn lattice_values_of<V: Copy + Sync>(
         .flatten();
     match (ident, int_codes) {
         (true, Some(_)) if within => map_values(rec, kinds, fill, at, index_f),
-        (true, Some((lo, hi))) => map_values(rec, kinds, fill, at, |k| index_f(k).clamp(lo, hi)),
+        (true, Some((lo, hi))) => map_values(rec, kinds, fill, at, move |k| index_f(k).clamp(lo, hi)),
         (true, None) => map_values(rec, kinds, fill, at, |k| crate::quant::finish_value(index_f(k), header)),
         _ => map_values(rec, kinds, fill, at, |k| finish_value(domain.raw(index(k)), header)),
     }
@@ -946,8 +948,11 @@ impl<V: Copy, F: Fn(V) -> f64> pulp::WithSimd for ValueRow<'_, V, F> {
                 }
             }
             Some(kd) => {
+                let fill = self.fill;
                 for ((o, &k), &kind) in self.out.iter_mut().zip(self.rec).zip(kd) {
-                    *o = if kind == SKIPPED { self.fill } else { value(k) };
+                    // A select, not a branch: the loop vectorises.
+                    let v = value(k);
+                    *o = if kind == SKIPPED { fill } else { v };
                 }
             }
         }

@@ -12,6 +12,16 @@ use super::super::plane::{Plane, SKIPPED};
 /// With `lanes` (the lane coding) the pass's own two points are left out and the weights
 /// kept within ±[`super::lanes::MAX_WEIGHT`].
 pub(super) fn fit(p: &Plane, pass: Pass, lanes: bool) -> Option<[i16; NW]> {
+    if lanes {
+        // The eight coarser points alone: a smaller system to fit.
+        fit_n::<NCOARSE>(p, pass, true)
+    } else {
+        fit_n::<NW>(p, pass, false)
+    }
+}
+
+/// [`fit`] on the stencil's first `N` points (the rest of the weights 0).
+fn fit_n<const N: usize>(p: &Plane, pass: Pass, lanes: bool) -> Option<[i16; NW]> {
     let (w, h) = (p.width, p.height);
     let s = pass.s;
     let offs = pass.offsets(w);
@@ -22,7 +32,7 @@ pub(super) fn fit(p: &Plane, pass: Pass, lanes: bool) -> Option<[i16; NW]> {
     // Without skipped samples no stencil point needs its kind looked up.
     let skips = p.kinds.contains(&SKIPPED);
     // Calls `f(features, target)` for every sample the fit uses.
-    let each = |f: &mut dyn FnMut(&[i64; NW], i64)| {
+    let each = |f: &mut dyn FnMut(&[i64; N], i64)| {
         for k in (0..pass.rows(h)).step_by(step) {
             let y = pass.r0 + k * pass.rs;
             let rows_in = match pass.kind {
@@ -44,15 +54,12 @@ pub(super) fn fit(p: &Plane, pass: Pass, lanes: bool) -> Option<[i16; NW]> {
                 }
                 let at = |d: isize| p.values[(i as isize + d * along) as usize];
                 let base = (-at(-3) + 9 * (at(-1) + at(1)) - at(3) + 8) >> 4;
-                let mut fs = [0i64; NW];
+                let mut fs = [0i64; N];
                 let mut ok = true;
                 for (fk, o) in fs.iter_mut().zip(offs) {
                     let j = (i as isize + o) as usize;
                     ok &= !skips || p.kinds[j] != SKIPPED;
                     *fk = p.values[j] - base;
-                }
-                if lanes {
-                    fs[NCOARSE..].fill(0);
                 }
                 if ok {
                     f(&fs, p.values[i] - base);
@@ -60,15 +67,14 @@ pub(super) fn fit(p: &Plane, pass: Pass, lanes: bool) -> Option<[i16; NW]> {
             }
         }
     };
-    let mut n = super::super::ls::Normal::<NW>::new();
+    let mut n = super::super::ls::Normal::<N>::new();
     each(&mut |fs, t| n.add(fs, t as f64));
     let mut wt = n.solve();
     if lanes {
         let m = super::lanes::MAX_WEIGHT;
         wt = wt.map(|v| v.clamp(-m, m));
-        wt[NCOARSE..].fill(0);
     }
-    if wt == [0; NW] {
+    if wt == [0; N] {
         return None;
     }
     // Squared errors in f64: lattice values reach ±2^38 (`lattice::MAX_UNITS`), so a
@@ -86,7 +92,9 @@ pub(super) fn fit(p: &Plane, pass: Pass, lanes: bool) -> Option<[i16; NW]> {
     let q = (pass.bin as f64).powi(2) / 4.0;
     let per = 0.5 * ((e0 / m + q) / (e1 / m + q)).log2();
     let samples = (pass.rows(h) * pass.cols(w)) as f64;
-    (per * samples > 2.0 * 8.0 * 2.0 * NW as f64).then_some(wt)
+    let mut all = [0i16; NW];
+    all[..N].copy_from_slice(&wt);
+    (per * samples > 2.0 * 8.0 * 2.0 * NW as f64).then_some(all)
 }
 
 /// Narrower coarse bins pay when bins are wide against the finest level's prediction
