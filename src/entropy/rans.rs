@@ -255,10 +255,10 @@ pub const STATES: usize = 4;
 pub struct LanesEncoder;
 
 impl LanesEncoder {
-    /// The bytes of `symbols`, each `(table, symbol, state)` with a nonzero frequency: the
-    /// four final states (u32 LE, state 0 first), then the renormalisation words (u16 LE)
-    /// in decode order.
-    pub fn encode(tables: &[EncTable], symbols: &[(u16, u8, u8)]) -> Vec<u8> {
+    /// The bytes of `symbols`, each `(table, symbol, state)` with a nonzero frequency and a
+    /// state below `states` (1 ..= [`STATES`]): the final states (u32 LE, state 0 first),
+    /// then the renormalisation words (u16 LE) in decode order.
+    pub fn encode(tables: &[EncTable], symbols: &[(u16, u8, u8)], states: usize) -> Vec<u8> {
         let mut words: Vec<u16> = Vec::with_capacity(symbols.len() / 2);
         let mut xs = [LOW; STATES];
         for &(t, s, l) in symbols.iter().rev() {
@@ -273,10 +273,14 @@ impl LanesEncoder {
             }
             *x = ((*x / f) << PREC) + (*x % f) + t.cum[s as usize];
         }
-        let mut out = Vec::with_capacity(4 * STATES + 2 * words.len());
-        for x in xs {
+        let mut out = Vec::with_capacity(4 * states + 2 * words.len());
+        for x in &xs[..states] {
             out.extend_from_slice(&x.to_le_bytes());
         }
+        debug_assert!(
+            xs[states..].iter().all(|&x| x == LOW),
+            "a symbol of an unused state"
+        );
         for w in words.iter().rev() {
             out.extend_from_slice(&w.to_le_bytes());
         }
@@ -292,11 +296,12 @@ pub struct LanesDecoder<'a> {
 }
 
 impl<'a> LanesDecoder<'a> {
-    pub fn new(bytes: &'a [u8]) -> Result<LanesDecoder<'a>> {
-        let Some(first) = bytes.get(..4 * STATES) else {
+    /// A stream of `states` interleaved states (1 ..= [`STATES`]; the others stay unused).
+    pub fn new(bytes: &'a [u8], states: usize) -> Result<LanesDecoder<'a>> {
+        let Some(first) = bytes.get(..4 * states) else {
             return Err(corrupt("an entropy stream is shorter than its states"));
         };
-        let mut x = [0u32; STATES];
+        let mut x = [LOW; STATES];
         for (x, b) in x.iter_mut().zip(first.chunks_exact(4)) {
             *x = u32::from_le_bytes(b.try_into().expect("4 bytes"));
             if *x < LOW {
@@ -306,7 +311,7 @@ impl<'a> LanesDecoder<'a> {
         Ok(LanesDecoder {
             x,
             bytes,
-            pos: 4 * STATES,
+            pos: 4 * states,
         })
     }
 

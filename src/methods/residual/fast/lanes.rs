@@ -403,11 +403,23 @@ pub(super) trait Tokens<T: Lane> {
     fn row(&mut self, cb: &[u16], pred: &[T], src: &dyn Fn(usize) -> i64, kinds: Option<&dyn Fn(usize) -> u8>, bin: T, q: &mut [T]) -> Result<()>;
 }
 
+/// Passes with at least this many columns code their bands in four interleaved states,
+/// others in one (four states' 16 bytes would be a large share of a small band's).
+pub(super) const MANY_FROM: usize = 64;
+
+/// The interleaved states of a band of `pass` in a raster `w` wide, less one (a mask on the
+/// column index: 3 or 0).
+pub(super) fn state_mask(pass: &Pass, w: usize) -> usize {
+    if pass.cols(w) >= MANY_FROM { 3 } else { 0 }
+}
+
 /// The encoder's record of a band: tokens with their context and state, the raw bits.
 #[derive(Default)]
 pub(super) struct Recorder {
     pub syms: Vec<(u16, u8, u8)>,
     pub raw: BitWriter,
+    /// [`state_mask`] of the band's pass.
+    pub mask: usize,
 }
 
 impl<T: Lane> Tokens<T> for Recorder {
@@ -424,7 +436,7 @@ impl<T: Lane> Tokens<T> for Recorder {
             let b = if bin == 1 { r } else { quantize_f64(r, bin, binf) };
             let v = varint::zigzag(b);
             let (t, raw, nb) = token(v);
-            self.syms.push((cb[k], t, (k % 4) as u8));
+            self.syms.push((cb[k], t, (k & self.mask) as u8));
             if nb > 0 {
                 self.raw.put(raw, nb);
             }
@@ -453,6 +465,8 @@ pub(super) struct Reader<'a> {
     /// index them without a check).
     pub tables: &'a [&'a [u32; rans::TOTAL as usize]; 256],
     pub max_bin: u64,
+    /// [`state_mask`] of the band's pass.
+    pub mask: usize,
 }
 
 impl Reader<'_> {
@@ -474,7 +488,7 @@ impl Reader<'_> {
     /// The next token's zig-zagged bin.
     #[inline(always)]
     fn one<T: Lane>(&mut self, lane: usize, ctx: u16) -> Result<T> {
-        let t = self.ans.symbol(lane, self.tables[(ctx & 255) as usize])?;
+        let t = self.ans.symbol(lane & self.mask, self.tables[(ctx & 255) as usize])?;
         Ok(if t < 16 { T::of(t as i64) } else { T::of(self.escape(t)?) })
     }
 }
@@ -647,6 +661,7 @@ pub(super) fn run_anchors<T: Lane>(g: &Global<T>, pass: &Pass, coder: &mut dyn A
             let (r, q) = if kind == CODED {
                 let src = g.values.get(i).map_or(0, |v| v - g.lo);
                 let q = coder.one(col % 4, cbase, p, src, pass.bin)?;
+                // (Each coder masks the column to its band's states.)
                 ((p + pass.bin * q).clamp(0, g.r.wide()), q)
             } else if kind == FIXED {
                 ((g.values[i] - g.lo).clamp(0, g.r.wide()), 0)
@@ -669,7 +684,7 @@ impl AnchorTokens for Recorder {
     fn one(&mut self, lane: usize, ctx: usize, pred: i64, src: i64, bin: i64) -> Result<i64> {
         let b = quantize(src - pred, bin);
         let (t, raw, nb) = token(varint::zigzag(b));
-        self.syms.push((ctx as u16, t, lane as u8));
+        self.syms.push((ctx as u16, t, (lane & self.mask) as u8));
         if nb > 0 {
             self.raw.put(raw, nb);
         }

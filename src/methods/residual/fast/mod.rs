@@ -383,10 +383,11 @@ pub fn decode(
         let make = |k: usize, b: usize| -> Result<lanes::Reader> {
             let (a, r) = slices[firsts[k] + chosen[k].start + b];
             Ok(lanes::Reader {
-                ans: rans::LanesDecoder::new(a)?,
+                ans: rans::LanesDecoder::new(a, lanes::state_mask(&passes[k], w) + 1)?,
                 raw: BitReader::new(r, "raw bits"),
                 tables: &tabs,
                 max_bin,
+                mask: lanes::state_mask(&passes[k], w),
             })
         };
         let done = |rdr: lanes::Reader| -> Result<()> {
@@ -443,7 +444,12 @@ fn encode_lanes(p: &Plane, cfg: Config, all: &[Pass], weights: Vec<[i16; NW]>) -
     let (w, h) = (p.width, p.height);
     let bands: Vec<Vec<(usize, usize)>> = all.iter().map(|pass| pass.bands(w, h, cfg.band_log2)).collect();
     let chosen: Vec<Range<usize>> = bands.iter().map(|b| 0..b.len()).collect();
-    let make = |_: usize, _: usize| Ok(lanes::Recorder::default());
+    let make = |k: usize, _: usize| {
+        Ok(lanes::Recorder {
+            mask: lanes::state_mask(&all[k], w),
+            ..Default::default()
+        })
+    };
     let lo = p.lo;
     let (rec, streams): (Vec<i64>, _) = if lanes::fits_i32(p.hi - p.lo, p.bin) {
         let (r, s) = run_lanes::<i32, _, _>(p, all, &bands, &chosen, make, Ok)?;
@@ -476,7 +482,7 @@ fn encode_lanes(p: &Plane, cfg: Config, all: &[Pass], weights: Vec<[i16; NW]>) -
         .into_par_iter()
         .map(|s| {
             let syms: Vec<(u16, u8, u8)> = s.syms.iter().map(|&(c, t, l)| (map[c as usize], t, l)).collect();
-            (rans::LanesEncoder::encode(&enc, &syms), s.raw.finish())
+            (rans::LanesEncoder::encode(&enc, &syms, s.mask + 1), s.raw.finish())
         })
         .collect();
     let mut out = vec![cfg.band_log2];
