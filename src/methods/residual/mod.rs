@@ -732,11 +732,20 @@ fn decode_marked(
         exc.push((i as usize, v));
         next = i + 1;
     }
-    // The fixed samples' values (only they are read).
-    let mut values = if flat.is_some() { vec![0i64; n] } else { Vec::new() };
-    for (s, l, v) in flat.into_iter().flat_map(Flat::runs) {
-        let k = domain.index(v).clamp(-MAX_UNITS as f64, MAX_UNITS as f64) as i64;
-        values[s..s + l].fill(k);
+    // The fixed samples' values: runs for the lane coding (it writes them into its plane),
+    // a plane of them for the others (only they are read).
+    let lanes = matches!(cfg, Predictor::Fast(f) if f.lanes);
+    let index_of = |v: f64| domain.index(v).clamp(-MAX_UNITS as f64, MAX_UNITS as f64) as i64;
+    let fixed_runs: Vec<(usize, usize, i64)> = if lanes {
+        flat.into_iter().flat_map(Flat::runs).map(|(s, l, v)| (s, l, index_of(v))).collect()
+    } else {
+        Vec::new()
+    };
+    let mut values = if flat.is_some() && !lanes { vec![0i64; n] } else { Vec::new() };
+    if !lanes {
+        for (s, l, v) in flat.into_iter().flat_map(Flat::runs) {
+            values[s..s + l].fill(index_of(v));
+        }
     }
     let p = Plane {
         width: w,
@@ -754,7 +763,7 @@ fn decode_marked(
             .chunks_exact(fast::NW)
             .map(|c| c.try_into().expect("NW weights"))
             .collect();
-        fast::decode(&mut rd, &p, f.levels, f.tighten, f.lanes, &wts, max_bin, win.y..win.y + win.height, stop, marks)?
+        fast::decode(&mut rd, &p, &fixed_runs, f.levels, f.tighten, f.lanes, &wts, max_bin, win.y..win.y + win.height, stop, marks)?
     } else {
     // Codings 0 and 1 are one range-coded stream: every sample is decoded, whatever the
     // window.

@@ -574,9 +574,11 @@ pub(super) fn run_band<T: Lane, C: Tokens<T>>(
             let kd = |c: usize| g.kinds[at(c)];
             coder.row(&cb, &pred, &src, Some(&kd), kc.bin, &mut q)?;
             reconstruct(&pred, &q, kc.bin, g.r, rr, mr);
+            // A fixed sample keeps the value put into the plane before the passes ran.
+            let (pl, _) = planes.get();
             for c in 0..cols {
                 if g.kinds[at(c)] == FIXED {
-                    rr[c] = T::of((g.values[at(c)] - g.lo).clamp(0, g.r.wide()));
+                    rr[c] = pl[at(c)];
                 }
             }
         }
@@ -624,7 +626,12 @@ impl<T: Lane, C: Tokens<T>> pulp::WithSimd for Band<'_, '_, '_, T, C> {
 
 /// The anchors (one band): predicted sample by sample from the anchors before (MED), in
 /// row order.
-pub(super) fn run_anchors<T: Lane>(g: &Global<T>, pass: &Pass, coder: &mut dyn AnchorTokens) -> Result<BandBuf<T>> {
+pub(super) fn run_anchors<T: Lane>(
+    g: &Global<T>,
+    plane: &[T],
+    pass: &Pass,
+    coder: &mut dyn AnchorTokens,
+) -> Result<BandBuf<T>> {
     let w = g.w;
     let (rows, cols) = (pass.rows(g.h), pass.cols(w));
     let kc = PassK::<T>::new(pass);
@@ -664,7 +671,8 @@ pub(super) fn run_anchors<T: Lane>(g: &Global<T>, pass: &Pass, coder: &mut dyn A
                 // (Each coder masks the column to its band's states.)
                 ((p + pass.bin * q).clamp(0, g.r.wide()), q)
             } else if kind == FIXED {
-                ((g.values[i] - g.lo).clamp(0, g.r.wide()), 0)
+                // The value put into the plane before the passes ran.
+                (plane[i].wide(), 0)
             } else {
                 (p, 0)
             };

@@ -257,6 +257,7 @@ fn needed(passes: &[Pass], bands: &[Vec<(usize, usize)>], h: usize, rows: Range<
 pub fn decode(
     rd: &mut ByteReader,
     p: &Plane,
+    fixed: &[(usize, usize, i64)],
     levels: u32,
     tighten: bool,
     lanes: bool,
@@ -396,9 +397,9 @@ pub fn decode(
             raw.finish()
         };
         return if lanes::fits_i32(p.hi - p.lo, p.bin) {
-            run_lanes::<i32, _, _>(p, &passes, &bands, &chosen, make, done).map(|x| Rec::I32(x.0, p.lo))
+            run_lanes::<i32, _, _>(p, Some(fixed), &passes, &bands, &chosen, make, done).map(|x| Rec::I32(x.0, p.lo))
         } else {
-            run_lanes::<i64, _, _>(p, &passes, &bands, &chosen, make, done).map(|x| Rec::I64(x.0, p.lo))
+            run_lanes::<i64, _, _>(p, Some(fixed), &passes, &bands, &chosen, make, done).map(|x| Rec::I64(x.0, p.lo))
         };
     }
     let n = w * h;
@@ -452,10 +453,10 @@ fn encode_lanes(p: &Plane, cfg: Config, all: &[Pass], weights: Vec<[i16; NW]>) -
     };
     let lo = p.lo;
     let (rec, streams): (Vec<i64>, _) = if lanes::fits_i32(p.hi - p.lo, p.bin) {
-        let (r, s) = run_lanes::<i32, _, _>(p, all, &bands, &chosen, make, Ok)?;
+        let (r, s) = run_lanes::<i32, _, _>(p, None, all, &bands, &chosen, make, Ok)?;
         (r.par_iter().map(|&v| v as i64 + lo).collect(), s)
     } else {
-        let (r, s) = run_lanes::<i64, _, _>(p, all, &bands, &chosen, make, Ok)?;
+        let (r, s) = run_lanes::<i64, _, _>(p, None, all, &bands, &chosen, make, Ok)?;
         (r.par_iter().map(|&v| v + lo).collect(), s)
     };
     let mut counts = vec![[0u64; ALPHABET]; lanes::LNCTX];
@@ -504,8 +505,10 @@ fn encode_lanes(p: &Plane, cfg: Config, all: &[Pass], weights: Vec<[i16; NW]>) -
 /// buffers of its own (side by side on as many threads as there are), then written into the
 /// planes. Returns the reconstruction (lattice units less `p.lo`) and what `done`
 /// returned, in band order.
+#[allow(clippy::too_many_arguments)]
 fn run_lanes<T, C, X>(
     p: &Plane,
+    fixed: Option<&[(usize, usize, i64)]>,
     passes: &[Pass],
     bands: &[Vec<(usize, usize)>],
     chosen: &[Range<usize>],
@@ -520,6 +523,22 @@ where
     let (w, h) = (p.width, p.height);
     let mut plane = vec![T::of(0); w * h];
     let mut mag = vec![0u8; w * h];
+    // The fixed samples' values go into the plane first: their pass takes them from there
+    // (each position is written once, by its own pass). `fixed`: the decoder's runs of
+    // (start, length, lattice index); else (the encoder) the plane's values at fixed kinds.
+    let put = |k: i64| T::of((k - p.lo).clamp(0, p.hi - p.lo));
+    match fixed {
+        Some(runs) => {
+            for &(s, l, k) in runs {
+                plane[s..s + l].fill(put(k));
+            }
+        }
+        None => {
+            for (i, _) in p.kinds.iter().enumerate().filter(|(_, k)| **k == super::plane::FIXED) {
+                plane[i] = put(p.values[i]);
+            }
+        }
+    }
     let row_coded = lanes::row_flags(p.kinds, w, h);
     let all_coded = p.kinds.is_empty() || row_coded.iter().all(|&c| c);
     let mut out = Vec::new();
@@ -543,7 +562,7 @@ where
             for (b, &band) in picked.iter().enumerate() {
                 let mut c = make(k, b)?;
                 if pass.kind == Kind::Anchor {
-                    let bufs = [lanes::run_anchors(&g, pass, &mut c)?];
+                    let bufs = [lanes::run_anchors(&g, &plane, pass, &mut c)?];
                     lanes::scatter(w, pass, picked, &bufs, &mut plane, &mut mag);
                 } else {
                     let mut planes = lanes::Planes::Own(&mut plane, &mut mag);
@@ -583,6 +602,11 @@ mod tests {
         for n in -1000..1000 {
             assert_eq!((n + 8) >> 4, round_div(n, 16));
         }
+    }
+
+    /// The fixed samples of a test plane as the decoder's runs.
+    fn fixed_of(p: &Plane) -> Vec<(usize, usize, i64)> {
+        (0..p.kinds.len()).filter(|&i| p.kinds[i] == FIXED).map(|i| (i, 1, p.values[i])).collect()
     }
 
     /// A smooth surface with noise, a hole (skipped) and a fixed patch, on a lattice.
@@ -662,14 +686,14 @@ mod tests {
             let max_bin = (p.hi - p.lo) as u64 / super::super::narrowest_bin(bin, 4, tighten) as u64 + 1;
             for threads in [1, 2, 3] {
                 let back = crate::methods::with_threads(threads, || {
-                    decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, lanes, &wts, max_bin, 0..h, 0, None)
+                    decode(&mut ByteReader::new(&bytes, "t"), &p, &fixed_of(&p), 4, tighten, lanes, &wts, max_bin, 0..h, 0, None)
                 })
                 .unwrap()
                 .indices();
                 assert_eq!(back, rec, "bin {bin}, {threads} threads");
             }
             for cut in (0..bytes.len()).step_by(7) {
-                let r = decode(&mut ByteReader::new(&bytes[..cut], "t"), &p, 4, tighten, lanes, &wts, max_bin, 0..h, 0, None);
+                let r = decode(&mut ByteReader::new(&bytes[..cut], "t"), &p, &fixed_of(&p), 4, tighten, lanes, &wts, max_bin, 0..h, 0, None);
                 assert!(r.is_err(), "bin {bin}: a prefix of {cut} bytes decoded");
             }
             // One flipped bit in the streams decodes to an error or other samples, never a
@@ -677,7 +701,7 @@ mod tests {
             for k in (bytes.len() / 2..bytes.len()).step_by(13) {
                 let mut bad = bytes.clone();
                 bad[k] ^= 0x10;
-                let _ = decode(&mut ByteReader::new(&bad, "t"), &p, 4, tighten, lanes, &wts, max_bin, 0..h, 0, None);
+                let _ = decode(&mut ByteReader::new(&bad, "t"), &p, &fixed_of(&p), 4, tighten, lanes, &wts, max_bin, 0..h, 0, None);
             }
         }
     }
@@ -734,7 +758,7 @@ mod tests {
                 }
             }
             let max_bin = (p.hi - p.lo) as u64 / super::super::narrowest_bin(bin, 4, tighten) as u64 + 1;
-            let dec = |rows: Range<usize>| decode(&mut ByteReader::new(&bytes, "t"), &p, 4, tighten, lanes, &wts, max_bin, rows, 0, None).map(|r| r.indices());
+            let dec = |rows: Range<usize>| decode(&mut ByteReader::new(&bytes, "t"), &p, &fixed_of(&p), 4, tighten, lanes, &wts, max_bin, rows, 0, None).map(|r| r.indices());
             assert_eq!(dec(0..h).unwrap(), rec, "{what}: the full decode");
             // Every single row, the first and last few, and random ranges.
             let mut windows: Vec<Range<usize>> = (0..h).map(|y| y..y + 1).collect();
