@@ -73,7 +73,7 @@ def test_corpus_rasters_hold_the_bound_and_keep_georeferencing():
 
 
 def test_effort_chooses_the_residual_coding_and_keeps_the_bound():
-    """effort=1 writes the residual layer's fast coding: other bytes than the default
+    """effort=1 writes the residual layer's lane coding: other bytes than the default
     effort's (5), and both hold the bound on a real raster; None is the default itself."""
     a, prof = vtz.read(KAUAI)
     nodata = prof["nodata"]
