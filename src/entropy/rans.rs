@@ -220,17 +220,8 @@ impl<'a> StreamDecoder<'a> {
     /// The next symbol, from the table starting at slot `base` (k·[`TOTAL`]).
     #[inline(always)]
     pub fn symbol(&mut self, base: usize) -> Result<u8> {
-        let x = self.x;
-        let e = self.tables[base + (x & (TOTAL - 1)) as usize];
-        let mut x = ((e >> 12) & 0x1fff) * (x >> PREC) + (e & 0xfff);
-        if x < LOW {
-            let Some(w) = self.bytes.get(self.pos..self.pos + 2) else {
-                return Err(corrupt("an entropy stream ends early"));
-            };
-            x = (x << 16) | u16::from_le_bytes([w[0], w[1]]) as u32;
-            self.pos += 2;
-        }
-        self.x = x;
+        let e = self.tables[base + (self.x & (TOTAL - 1)) as usize];
+        self.x = step(self.x, e, self.bytes, &mut self.pos)?;
         Ok((e >> 25) as u8)
     }
 
@@ -319,17 +310,8 @@ impl<'a> LanesDecoder<'a> {
     /// [`DecTables::table`]).
     #[inline(always)]
     pub fn symbol(&mut self, lane: usize, table: &[u32; TOTAL as usize]) -> Result<u32> {
-        let x = self.x[lane];
-        let e = table[(x & (TOTAL - 1)) as usize];
-        let mut x = ((e >> 12) & 0x1fff) * (x >> PREC) + (e & 0xfff);
-        if x < LOW {
-            let Some(w) = self.bytes.get(self.pos..self.pos + 2) else {
-                return Err(corrupt("an entropy stream ends early"));
-            };
-            x = (x << 16) | u16::from_le_bytes([w[0], w[1]]) as u32;
-            self.pos += 2;
-        }
-        self.x[lane] = x;
+        let e = table[(self.x[lane] & (TOTAL - 1)) as usize];
+        self.x[lane] = step(self.x[lane], e, self.bytes, &mut self.pos)?;
         Ok(e >> 25)
     }
 
@@ -343,6 +325,21 @@ impl<'a> LanesDecoder<'a> {
         }
         Ok(())
     }
+}
+
+/// One decoding step of state `x` whose slot's packed entry is `e`: the next state, with a
+/// word read from `bytes` at `pos` when it falls below [`LOW`].
+#[inline(always)]
+fn step(x: u32, e: u32, bytes: &[u8], pos: &mut usize) -> Result<u32> {
+    let mut x = ((e >> 12) & 0x1fff) * (x >> PREC) + (e & 0xfff);
+    if x < LOW {
+        let Some(w) = bytes.get(*pos..*pos + 2) else {
+            return Err(corrupt("an entropy stream ends early"));
+        };
+        x = (x << 16) | u16::from_le_bytes([w[0], w[1]]) as u32;
+        *pos += 2;
+    }
+    Ok(x)
 }
 
 #[cold]

@@ -2,7 +2,7 @@
 //! the token, reconstruct; in place when a pass runs on one thread, into buffers of its
 //! own when its bands run side by side.
 
-use super::passes::{FINE, Kind, NCOARSE, NW, Pass, SymCoder, half_log};
+use super::passes::{FINE, Kind, NCOARSE, NW, Pass, SymCoder, anchor_med, half_log};
 use super::super::coder::quantize;
 use super::super::interp::interp1;
 use super::super::plane::{CODED, FIXED, Plane};
@@ -228,18 +228,7 @@ fn run_band<C: SymCoder, S: Store>(
                     let tl = (up && col > 0).then(|| st.own_rec(j - cols - 1, i - big * w - big));
                     let tr =
                         (up && col + 1 < cols).then(|| st.own_rec(j - cols + 1, i - big * w + big));
-                    let a = left.or(top).unwrap_or(mid);
-                    let b = top.unwrap_or(a);
-                    let c = tl.unwrap_or(a);
-                    let d = tr.unwrap_or(b);
-                    let p = if c >= a.max(b) {
-                        a.min(b)
-                    } else if c <= a.min(b) {
-                        a.max(b)
-                    } else {
-                        a + b - c
-                    };
-                    let t = (a - c).abs() + (b - c).abs() + (d - b).abs();
+                    let (p, t) = anchor_med(left, top, tl, tr, mid);
                     let m = u32::from(if col > 0 { st.own_mag(j - 1, i - big) } else { 0 })
                         + u32::from(if up { st.own_mag(j - cols, i - big * w) } else { 0 });
                     let (r, mg) = sample(g, cx, coder, i, p, t, m)?;

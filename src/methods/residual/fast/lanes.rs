@@ -12,7 +12,7 @@
 use super::super::coder::quantize;
 use super::super::interp::interp1;
 use super::super::plane::{CODED, FIXED};
-use super::passes::{FINE, Kind, NCOARSE, NW, Pass, half_log, token};
+use super::passes::{FINE, Kind, NCOARSE, NW, Pass, anchor_med, half_log, token};
 use crate::entropy::rans::{self, BitReader, BitWriter, LanesDecoder};
 use crate::entropy::varint;
 use crate::error::{Error, Result};
@@ -650,18 +650,7 @@ pub(super) fn run_anchors<T: Lane>(
             let top = up.then(|| own(j - cols));
             let tl = (up && col > 0).then(|| own(j - cols - 1));
             let tr = (up && col + 1 < cols).then(|| own(j - cols + 1));
-            let a = left.or(top).unwrap_or(mid);
-            let b = top.unwrap_or(a);
-            let c = tl.unwrap_or(a);
-            let d = tr.unwrap_or(b);
-            let p = if c >= a.max(b) {
-                a.min(b)
-            } else if c <= a.min(b) {
-                a.max(b)
-            } else {
-                a + b - c
-            };
-            let t = (a - c).abs() + (b - c).abs() + (d - b).abs();
+            let (p, t) = anchor_med(left, top, tl, tr, mid);
             let m = i32::from(if col > 0 { mag[j - 1] } else { 0 }) + i32::from(if up { mag[j - cols] } else { 0 });
             let cbase = kc.class(T::of(t), m) as usize;
             let kind = if g.kinds.is_empty() { CODED } else { g.kinds[i] };

@@ -160,20 +160,7 @@ pub fn encode(p: &Plane, cfg: Config) -> Result<Encoded> {
             counts[c as usize][t as usize] += 1;
         }
     }
-    let (map, clusters) = cluster(&counts);
-    let freqs: Vec<Vec<u32>> = clusters.iter().map(|c| rans::normalize(c)).collect();
-    let enc: Vec<EncTable> = freqs.iter().map(|f| EncTable::new(f)).collect();
-    let mut bits = BitWriter::default();
-    for g in 0..GROUPS {
-        for c in 1..FINE {
-            let k = g * FINE + c;
-            bits.put(u64::from(map[k] != map[k - 1]), 1);
-        }
-    }
-    for f in &freqs {
-        rans::write_table(&mut bits, f);
-    }
-    let tables = bits.finish();
+    let (map, tables, enc) = tables_of(&counts);
     let coded: Vec<(Vec<u8>, Vec<u8>)> = streams
         .into_par_iter()
         .map(|s| {
@@ -187,18 +174,43 @@ pub fn encode(p: &Plane, cfg: Config) -> Result<Encoded> {
             (ans, s.raw.finish())
         })
         .collect();
-    let mut out = vec![cfg.band_log2];
+    Ok((weights, layout(cfg.band_log2, &tables, &coded), rec))
+}
+
+/// The tables from the contexts' token counts (groups of [`FINE`] classes): each context's
+/// cluster, the bit block of the section's tables, and the clusters' encoder tables.
+fn tables_of(counts: &[[u64; ALPHABET]]) -> (Vec<u16>, Vec<u8>, Vec<EncTable>) {
+    let (map, clusters) = cluster(counts);
+    let freqs: Vec<Vec<u32>> = clusters.iter().map(|c| rans::normalize(c)).collect();
+    let enc: Vec<EncTable> = freqs.iter().map(|f| EncTable::new(f)).collect();
+    let mut bits = BitWriter::default();
+    for g in 0..counts.len() / FINE {
+        for c in 1..FINE {
+            let k = g * FINE + c;
+            bits.put(u64::from(map[k] != map[k - 1]), 1);
+        }
+    }
+    for f in &freqs {
+        rans::write_table(&mut bits, f);
+    }
+    (map, bits.finish(), enc)
+}
+
+/// The coding's bytes after the exceptions: band size, tables, the stream directory, then
+/// each band's rANS bytes and raw bits.
+fn layout(band_log2: u8, tables: &[u8], coded: &[(Vec<u8>, Vec<u8>)]) -> Vec<u8> {
+    let mut out = vec![band_log2];
     varint::put_u64(&mut out, tables.len() as u64);
-    out.extend_from_slice(&tables);
-    for (a, r) in &coded {
+    out.extend_from_slice(tables);
+    for (a, r) in coded {
         varint::put_u64(&mut out, a.len() as u64);
         varint::put_u64(&mut out, r.len() as u64);
     }
-    for (a, r) in &coded {
+    for (a, r) in coded {
         out.extend_from_slice(a);
         out.extend_from_slice(r);
     }
-    Ok((weights, out, rec))
+    out
 }
 
 /// A varint (LEB128, at most 10 bytes) from the section.
@@ -465,20 +477,7 @@ fn encode_lanes(p: &Plane, cfg: Config, all: &[Pass], weights: Vec<[i16; NW]>) -
             counts[c as usize][t as usize] += 1;
         }
     }
-    let (map, clusters) = cluster(&counts);
-    let freqs: Vec<Vec<u32>> = clusters.iter().map(|c| rans::normalize(c)).collect();
-    let enc: Vec<EncTable> = freqs.iter().map(|f| EncTable::new(f)).collect();
-    let mut bits = BitWriter::default();
-    for g in 0..lanes::LNCTX / FINE {
-        for c in 1..FINE {
-            let k = g * FINE + c;
-            bits.put(u64::from(map[k] != map[k - 1]), 1);
-        }
-    }
-    for f in &freqs {
-        rans::write_table(&mut bits, f);
-    }
-    let tables = bits.finish();
+    let (map, tables, enc) = tables_of(&counts);
     let coded: Vec<(Vec<u8>, Vec<u8>)> = streams
         .into_par_iter()
         .map(|s| {
@@ -486,18 +485,7 @@ fn encode_lanes(p: &Plane, cfg: Config, all: &[Pass], weights: Vec<[i16; NW]>) -
             (rans::LanesEncoder::encode(&enc, &syms, s.mask + 1), s.raw.finish())
         })
         .collect();
-    let mut out = vec![cfg.band_log2];
-    varint::put_u64(&mut out, tables.len() as u64);
-    out.extend_from_slice(&tables);
-    for (a, r) in &coded {
-        varint::put_u64(&mut out, a.len() as u64);
-        varint::put_u64(&mut out, r.len() as u64);
-    }
-    for (a, r) in &coded {
-        out.extend_from_slice(a);
-        out.extend_from_slice(r);
-    }
-    Ok((weights, out, rec))
+    Ok((weights, layout(cfg.band_log2, &tables, &coded), rec))
 }
 
 /// Run the lane coding's passes on the bands `chosen[k]` of each pass k (`make(k, b)` gives
