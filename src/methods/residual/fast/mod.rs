@@ -1,4 +1,6 @@
-//! The fast coding (codings 2 and 3, spec/FORMAT.md "Fast coding"): multilevel cubic
+//! The static-rANS codings of the residual layer: the fast coding (codings 2 and 3,
+//! spec/FORMAT.md "Fast coding") and, in `lanes`, the lane coding built on its passes,
+//! bands and tables (codings 4 and 5, "Lane coding"). The fast coding: multilevel cubic
 //! interpolation with a least-squares stencil on the finest levels (points of coarser
 //! levels and of the sample's own band), each bin a token (small values directly, large
 //! ones as exponent + raw bits, as JPEG XL's hybrid integers) coded by static rANS under a
