@@ -186,12 +186,21 @@ impl<T: Lane> PassK<T> {
 /// A row's samples at columns 0, st, 2·st, … gathered into `out` (contiguous, so the
 /// loops over them vectorise).
 #[inline(always)]
-fn gather<T: Copy>(row: &[T], st: usize, out: &mut Vec<T>) {
-    out.clear();
-    let mut ch = row.chunks_exact(st);
-    out.extend((&mut ch).map(|c| c[0]));
-    if let Some(&v) = ch.remainder().first() {
-        out.push(v);
+fn gather<T: Copy + Default>(row: &[T], st: usize, out: &mut Vec<T>) {
+    let (n, full) = (row.len().div_ceil(st), row.len() / st);
+    out.resize(n, T::default());
+    if st == 2 {
+        // A constant stride: the loads vectorise (LLVM's interleaved groups).
+        for (o, c) in out[..full].iter_mut().zip(row.chunks_exact(2)) {
+            *o = c[0];
+        }
+    } else {
+        for (o, c) in out[..full].iter_mut().zip(row.chunks_exact(st)) {
+            *o = c[0];
+        }
+    }
+    if full < n {
+        out[full] = row[full * st];
     }
 }
 
@@ -594,15 +603,19 @@ pub(super) fn run_band<T: Lane, C: Tokens<T>>(
 /// `out[k·cs] = row[k]`.
 #[inline(always)]
 fn put_row<V: Copy>(out: &mut [V], cs: usize, row: &[V]) {
+    let full = (out.len() / cs).min(row.len());
     if cs == 2 {
         // A constant stride: the stores vectorise.
-        for (ch, &v) in out.chunks_mut(2).zip(row) {
-            ch[0] = v;
+        for (c, &v) in out.chunks_exact_mut(2).zip(&row[..full]) {
+            c[0] = v;
         }
     } else {
-        for (ch, &v) in out.chunks_mut(cs).zip(row) {
-            ch[0] = v;
+        for (c, &v) in out.chunks_exact_mut(cs).zip(&row[..full]) {
+            c[0] = v;
         }
+    }
+    for (k, &v) in row.iter().enumerate().skip(full) {
+        out[k * cs] = v;
     }
 }
 
