@@ -145,9 +145,10 @@ def encode(
         Threads (0 = all cores). The bytes are the same for every value.
     effort : int, optional
         Encoder effort 1..9, speed against size (the CLI's ``--effort``); ``None``: the
-        library's default, 5. Efforts 1-2 write the residual method's fast coding (several
-        times faster to encode and faster to decode, a few per cent larger); 3-5 its
-        range-coded predictors; 6-9 try both and keep the smaller. Other methods ignore it.
+        library's default, 5. Effort 1 writes the residual method's lane coding (the fastest
+        to decode, 4-6x faster to encode, 6-8 % larger), 2 its fast coding (3-5 % larger);
+        3-5 its range-coded predictors; 6-9 try those and the fast coding, keeping the
+        smallest. Other methods ignore it.
         Anything but ``None`` or an integer 1..9 raises :class:`InvalidArgumentError`.
     offset, scale : float, optional
         The array holds integer codes whose values are ``offset + scale * code`` (GDAL's band

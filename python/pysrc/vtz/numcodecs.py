@@ -247,8 +247,8 @@ class Vtz(Codec):
         default 1 suits callers that code several chunks at once.
     effort : int, optional
         Encoder effort 1..9 (:func:`vtz.encode`'s): ``None`` is the library's default, 5;
-        1-2 write the residual method's fast coding (several times faster to write, faster
-        to read, a few per cent larger); 6-9 try both codings. An effort outside 1..9 is
+        1 writes the residual method's lane coding, 2 its fast coding (several times faster
+        to write and to read, a few per cent larger); 6-9 try the fast and range codings. An effort outside 1..9 is
         reported by ``encode``, so that a store opens for reading whatever it records.
 
     Notes

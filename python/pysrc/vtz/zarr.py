@@ -106,8 +106,8 @@ class VtzCodec(ArrayBytesCodec, ArrayBytesCodecPartialDecodeMixin):
         Threads per chunk (0 = all cores); the bytes are the same for every value.
     effort : int, optional
         Encoder effort 1..9 (:func:`vtz.encode`'s): ``None`` is the library's default, 5;
-        1-2 write the residual method's fast coding (several times faster to write, faster
-        to read, a few per cent larger); 6-9 try both codings. Recorded in the store's
+        1 writes the residual method's lane coding, 2 its fast coding (several times faster
+        to write and to read, a few per cent larger); 6-9 try the fast and range codings. Recorded in the store's
         metadata when set; an effort outside 1..9 is reported when a chunk is written, so
         that reading never fails on it.
 
