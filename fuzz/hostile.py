@@ -43,8 +43,8 @@ def edited(data, fields=(), retype=()):
 
 
 def residual_claims(data, n, band_log2=None):
-    """`data` with its residual section's coded count set to n and, for the fast coding
-    (codings 2, 3), its band size exponent set (a large one makes one band per pass, so the
+    """`data` with its residual section's coded count set to n and, for the fast and lane codings
+    (codings 2–5), its band size exponent set (a large one makes one band per pass, so the
     stream directory fits any raster size); the section's and header's CRCs recomputed."""
     d = bytearray(data)
     hlen = struct.unpack_from("<I", d, 12)[0]
@@ -56,7 +56,7 @@ def residual_claims(data, n, band_log2=None):
         kind, _, _, length = struct.unpack_from("<HHIQ", d, at)
         if kind == 6 and length >= 73:
             struct.pack_into("<Q", d, off + 64, n)
-            if band_log2 is not None and d[off] in (2, 3):
+            if band_log2 is not None and d[off] in (2, 3, 4, 5):
                 d[off + 72 + 20 * d[off + 3]] = band_log2
             struct.pack_into("<I", d, at + 4, zlib.crc32(bytes(d[off:off + length])))
         off += length
