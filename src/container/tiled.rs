@@ -592,12 +592,7 @@ fn read_index_v2(
             "header: the index of {n} tiles needs {want} bytes, the header says {index_len}"
         )));
     }
-    if index_len > limits.max_section_bytes {
-        return Err(Error::limit(format!(
-            "tile index of {index_len} bytes is over the limit of {}",
-            limits.max_section_bytes
-        )));
-    }
+    index_within_limit(index_len, limits)?;
     match index_offset.checked_add(index_len) {
         Some(end) if index_offset >= global_start && end <= file_len => {
             if end != file_len {
@@ -710,12 +705,7 @@ fn read_cloud_index(
             "header: an index of {index_len} bytes cannot hold {n} tiles ({least}..={most} bytes)"
         )));
     }
-    if index_len > limits.max_section_bytes {
-        return Err(Error::limit(format!(
-            "tile index of {index_len} bytes is over the limit of {}",
-            limits.max_section_bytes
-        )));
-    }
+    index_within_limit(index_len, limits)?;
     if index_at + index_len > file_len {
         return Err(Error::corrupt("file is truncated in the tile index"));
     }
@@ -1093,6 +1083,17 @@ impl TileOpener<'_> {
 pub fn tile_name(grid: &TileGrid, k: usize) -> String {
     let w = grid.rect(k);
     format!("tile {k} (at {},{})", w.x, w.y)
+}
+
+/// A tile index (versions 2 and 4) of `index_len` bytes within the section byte limit.
+fn index_within_limit(index_len: u64, limits: &Limits) -> Result<()> {
+    if index_len > limits.max_section_bytes {
+        return Err(Error::limit(format!(
+            "tile index of {index_len} bytes is over the limit of {}",
+            limits.max_section_bytes
+        )));
+    }
+    Ok(())
 }
 
 #[cfg(test)]
