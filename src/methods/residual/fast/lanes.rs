@@ -409,7 +409,7 @@ fn edge_curv(a: Option<i64>, b: i64, c: Option<i64>, d: Option<i64>) -> i64 {
 pub(super) trait Tokens<T: Lane> {
     /// The bins of a row's samples; `kinds`: the row's kinds at its samples' columns
     /// (`None`: all coded); `src`: the sources (encoder).
-    fn row(&mut self, cb: &[u16], pred: &[T], src: &dyn Fn(usize) -> i64, kinds: Option<&dyn Fn(usize) -> u8>, bin: T, q: &mut [T]) -> Result<()>;
+    fn row<S: Fn(usize) -> i64, K: Fn(usize) -> u8>(&mut self, cb: &[u16], pred: &[T], src: &S, kinds: Option<&K>, bin: T, q: &mut [T]) -> Result<()>;
 }
 
 /// Passes with at least this many columns code their bands in four interleaved states,
@@ -433,7 +433,7 @@ pub(super) struct Recorder {
 
 impl<T: Lane> Tokens<T> for Recorder {
     #[inline(always)]
-    fn row(&mut self, cb: &[u16], pred: &[T], src: &dyn Fn(usize) -> i64, kinds: Option<&dyn Fn(usize) -> u8>, bin: T, q: &mut [T]) -> Result<()> {
+    fn row<S: Fn(usize) -> i64, K: Fn(usize) -> u8>(&mut self, cb: &[u16], pred: &[T], src: &S, kinds: Option<&K>, bin: T, q: &mut [T]) -> Result<()> {
         let bin = bin.wide();
         let binf = bin as f64;
         for k in 0..q.len() {
@@ -504,7 +504,7 @@ impl Reader<'_> {
 
 impl<T: Lane> Tokens<T> for Reader<'_> {
     #[inline(always)]
-    fn row(&mut self, cb: &[u16], _pred: &[T], _src: &dyn Fn(usize) -> i64, kinds: Option<&dyn Fn(usize) -> u8>, _bin: T, q: &mut [T]) -> Result<()> {
+    fn row<S: Fn(usize) -> i64, K: Fn(usize) -> u8>(&mut self, cb: &[u16], _pred: &[T], _src: &S, kinds: Option<&K>, _bin: T, q: &mut [T]) -> Result<()> {
         let n = q.len();
         let cb = &cb[..n];
         if let Some(kd) = kinds {
@@ -577,7 +577,7 @@ pub(super) fn run_band<T: Lane, C: Tokens<T>>(
         let j = if own { 0 } else { (k - k0) * cols };
         let (rr, mr) = (&mut rec[j..j + cols], &mut mag[j..j + cols]);
         if g.coded_row(y) {
-            coder.row(&cb, &pred, &src, None, kc.bin, &mut q)?;
+            coder.row(&cb, &pred, &src, None::<&fn(usize) -> u8>, kc.bin, &mut q)?;
             reconstruct(&pred, &q, kc.bin, g.r, rr, mr);
         } else {
             let kd = |c: usize| g.kinds[at(c)];
