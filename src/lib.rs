@@ -66,8 +66,8 @@ pub use error::{Error, Result};
 pub use mesh::export::{MeshFormat, encode as encode_mesh};
 pub use mesh::{Fit as MeshFit, Mesh, MeshOptions};
 pub use methods::{
-    DEFAULT_EFFORT, FisOptions, HaarOptions, Method, MethodParams, Norm, SibsonOptions, Site,
-    StatValue, Stats,
+    COMPACT_EFFORT, DEFAULT_EFFORT, FisOptions, HaarOptions, Method, MethodParams, Norm,
+    SibsonOptions, Site, StatValue, Stats,
 };
 pub use model::{
     GeoKeys, Georef, InMemory, OutputType, PointSet, Raster, RasterType, RowSource, SampleType,

@@ -36,6 +36,7 @@ struct Candidate {
 }
 
 /// Encode `raster` with one concrete method.
+#[allow(clippy::too_many_arguments)]
 fn encode_method(
     m: &'static dyn Representation,
     raster: &Raster,
@@ -43,6 +44,7 @@ fn encode_method(
     opts: &EncodeOptions,
     e: Option<f64>,
     flat: Option<&[f64]>,
+    cap: Option<usize>,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Candidate> {
     // Settings that belong to another method are a mistake, not something to ignore.
@@ -62,6 +64,7 @@ fn encode_method(
         flat,
         base: None,
         levels_first: opts.levels_first,
+        size_cap: cap,
     };
     Ok(Candidate {
         method: m,
@@ -188,11 +191,14 @@ pub(crate) fn encode_parts(
         };
         // Why each method left out could not meet the request (for the note below).
         let mut why: Vec<(&'static str, String)> = Vec::new();
-        let short = if trial {
+        let mut short = if trial {
             shortlist(&runs, raster, opts, &mut why, &mut |f| progress(share * f))?
         } else {
             runs
         };
+        // The cheapest first: each later one is told the smallest payload so far, and the
+        // sites encoder (the slowest) stops as soon as its sites take more.
+        short.sort_by(|a, b| a.0.relative_cost().total_cmp(&b.0.relative_cost()));
         let costs: Vec<f64> = short.iter().map(|(m, _)| m.relative_cost()).collect();
         let total: f64 = costs.iter().sum();
         let mut last_err = None;
@@ -205,8 +211,13 @@ pub(crate) fn encode_parts(
                 let f = f.clamp(0.0, 1.0);
                 progress(share + (1.0 - share) * (before + costs[i] * f) / total)
             };
-            match encode_method(m, raster, &header, opts, e, flat, &mut p) {
+            let cap = cands.iter().map(|c| c.enc.payload.len()).min();
+            match encode_method(m, raster, &header, opts, e, flat, cap, &mut p) {
                 Ok(c) => cands.push(c),
+                // Stopped because it would be larger than a candidate: not a failure.
+                Err(Error::Unmet { what }) if what == crate::methods::sites::SIZE_CAP_MESSAGE => {
+                    p(1.0)
+                }
                 Err(err) => {
                     why.push((m.name(), err.to_string()));
                     last_err = Some(err);
@@ -258,7 +269,7 @@ pub(crate) fn encode_parts(
             }
             let mut p = slot(progress, k, n);
             encoded.push(*m);
-            match encode_method(m.0, raster, &header, &o, e, flat, &mut p) {
+            match encode_method(m.0, raster, &header, &o, e, flat, None, &mut p) {
                 Ok(c) => cands.push(c),
                 // Of several methods, one that cannot meet the request is left out with a
                 // note; the others still make the file.
@@ -401,7 +412,7 @@ fn shortlist(
         let mut sum = Some(0usize);
         for (k, t) in tiles.iter().enumerate() {
             let h = Header::of(t)?;
-            let r = encode_method(m, t, &h, opts, e, None, &mut |_| {});
+            let r = encode_method(m, t, &h, opts, e, None, None, &mut |_| {});
             progress((done + m.relative_cost() * (k + 1) as f64) / total);
             match r {
                 Ok(c) => *sum.as_mut().expect("still a candidate") += c.enc.payload.len(),
@@ -572,7 +583,7 @@ fn contenders(
     // Each of the (at most four) probe encodes moves the bar a quarter of its share.
     let steps = std::cell::Cell::new(0u32);
     let len = |r: &Raster, h: &Header, m: &'static dyn Representation, e: Option<f64>| {
-        let out = encode_method(m, r, h, opts, e, None, &mut |_| {})
+        let out = encode_method(m, r, h, opts, e, None, None, &mut |_| {})
             .ok()
             .map(|c| c.enc.payload.len() as f64);
         steps.set(steps.get() + 1);

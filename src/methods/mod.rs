@@ -39,7 +39,7 @@ registry! {
 
 pub use fis::FisOptions;
 pub use haar::HaarOptions;
-pub use residual::DEFAULT_EFFORT;
+pub use residual::{COMPACT_EFFORT, DEFAULT_EFFORT};
 pub use sites::{Norm, SibsonOptions};
 
 use crate::container::{Header, SectionKind};
@@ -298,6 +298,9 @@ pub(crate) struct EncodeJob<'a> {
     /// prefix of such a coding): one without them must save more than
     /// [`LEVELS_FIRST_MARGIN`].
     pub levels_first: bool,
+    /// `best`: the smallest candidate's payload so far; a method that can tell early that
+    /// it will be larger may stop with [`Error::Unmet`] (the sites encoder does).
+    pub size_cap: Option<usize>,
 }
 
 /// What a coding without coarse levels (the residual layer's weighted scan) must save over

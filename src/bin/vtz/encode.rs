@@ -59,10 +59,10 @@ pub struct Args {
     #[arg(long, default_value = "linf")]
     pub norm: String,
     /// Encoder effort 1..=9: higher tries more predictors and bin layouts for a smaller
-    /// file (default 5); 1 writes the residual layer's lane coding alone (the fastest to
-    /// decode: vectorised rows, four interleaved rANS states), 2 its fast coding alone
-    /// (rANS tokens, bands of rows that decode on several cores), 6–9 also try the fast
-    /// coding; `vtz info` says which coding a file holds.
+    /// file. 1–5 (default 5) write the residual layer's lane coding (the fastest to decode:
+    /// vectorised rows, four interleaved rANS states; 5 also finer bins on float rasters),
+    /// 2 its older fast coding; 6 its compact range-coded coding (6–8 % smaller, 2–6×
+    /// slower to decode); 7–9 try them all. `vtz info --stats` says which coding a file holds.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=9))]
     pub effort: Option<u8>,
     /// Input format, when the extension does not tell (tif, png, terrain-rgb, exr, hgt, asc, f32).

@@ -36,9 +36,9 @@ impl Representation for Fis {
         to.fis = from.fis.clone();
     }
     fn relative_cost(&self) -> f64 {
-        // Kauai 1201², one thread, 1 m / 1 %: 1.34 / 1.05 s (failing)
-        // against the residual layer's 1.22 / 0.87 s.
-        1.2
+        // Kauai 1201², one thread, 1 m / 1 %: 0.73 / 0.60 s (failing) (whole
+        // processes) against the residual layer's lane coding (the default effort) 0.18 / 0.15 s.
+        4.0
     }
     fn encode(&self, job: &EncodeJob, progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
         let o = &job.params.fis;

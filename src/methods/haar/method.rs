@@ -48,9 +48,9 @@ impl Representation for Haar {
         })
     }
     fn relative_cost(&self) -> f64 {
-        // Kauai 1201², one thread, 1 m / 1 %: 2.27 / 2.38 s
-        // against the residual layer's 1.22 / 0.87 s.
-        2.2
+        // Kauai 1201², one thread, 1 m / 1 %: 1.39 / 1.90 s (whole
+        // processes) against the residual layer's lane coding (the default effort) 0.18 / 0.15 s.
+        10.0
     }
     fn encode(&self, job: &EncodeJob, progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
         let (payload, bound) = match job.params.haar.step {

@@ -54,10 +54,15 @@ const EXCEPTION_BITS: f64 = 48.0;
 const MAX_SUBDIVISION: i64 = 16;
 
 /// The encoder effort without `--effort`. What each effort does in the residual layer
-/// (`codings`): 1 the lane coding, 2 the fast coding, 3+ both range-coded predictors, 5+
-/// also sub-lattice bins and narrower coarse bins, 6+ also the fast coding; the smallest
-/// kept.
+/// (`codings`): 1–5 the lane coding (5 also sub-lattice bins on floating-point rasters),
+/// except 2, the fast coding; 6 both range-coded predictors (the compact coding, with
+/// sub-lattice bins and narrower coarse bins); 7–9 all of those, the smallest kept.
+/// The lane coding is the default since issue 37: 5.8–8.2 % larger than the compact
+/// coding (geomean per bound on the corpus) and 2–6× faster to decode (benches/README.md).
 pub const DEFAULT_EFFORT: u8 = 5;
+/// The effort that writes the compact (range-coded) coding alone: the smallest files of a
+/// single coding, 2–6× slower to decode than the default.
+pub const COMPACT_EFFORT: u8 = 6;
 
 /// One way of coding the plane.
 #[derive(Clone, Copy, Debug)]
@@ -164,7 +169,10 @@ pub(crate) fn encode(
                 hi: setup.hi,
                 bin: setup.bin,
             };
-            let (payload, rec) = match code(&p, pred, &setup, &exceptions_bytes(r, &setup.exceptions)) {
+            // Within a coding's share, the stages it reports (the fast codings').
+            let mut within = |f: f64| progress((t as f64 + f.clamp(0.0, 1.0)) / n as f64);
+            let exc = exceptions_bytes(r, &setup.exceptions);
+            let (payload, rec) = match code(&p, pred, &setup, &exc, &mut within) {
                 Ok(x) => x,
                 // The weighted predictor cannot code every plane: its mean prediction must
                 // stay within ±2^45 eighths of a step (`weighted::MAX_P`, what keeps its
@@ -229,14 +237,14 @@ pub(crate) fn encode(
     }))
 }
 
-/// Which codings to try. Effort 1: the lane coding alone (coding 4 or 5); effort 2: the
-/// fast coding alone (2 or 3); each with narrower coarse-level
-/// bins where bins are wide against the finest level's prediction error ([`fast::resolve`])
-/// and stencil corrections where the encoder reckons they pay. Efforts 3–4: the two range-coded predictors (multilevel
-/// interpolation, the weighted scan); 5 (the default) also interpolation with narrower
-/// coarse bins when bins are ≥ 3 steps (SZ3's α/β: it gains at wide bins and loses at
-/// narrow ones). Efforts 6–9: all of those and both bin layouts of the fast coding. The
-/// smallest wins.
+/// Which codings to try. Efforts 1 and 3–5: the lane coding alone (coding 4 or 5);
+/// effort 2: the fast coding alone (2 or 3); each with narrower coarse-level bins where
+/// bins are wide against the finest level's prediction error ([`fast::resolve`]) and
+/// stencil corrections where the encoder reckons they pay. Effort 6: the two range-coded
+/// predictors (multilevel interpolation, the weighted scan), and interpolation with
+/// narrower coarse bins when bins are ≥ 3 steps (SZ3's α/β: it gains at wide bins and
+/// loses at narrow ones). Efforts 7–9: all of those, the lane coding and both bin layouts
+/// of the fast coding. The smallest wins.
 fn codings(cfg: interp::Config, bin: i64, effort: u8) -> Vec<Predictor> {
     let fast = |tighten, tighten_auto, lanes| {
         Predictor::Fast(fast::Config {
@@ -248,22 +256,26 @@ fn codings(cfg: interp::Config, bin: i64, effort: u8) -> Vec<Predictor> {
             lanes,
         })
     };
-    if effort == 1 {
-        return vec![fast(false, true, true)];
-    }
     if effort == 2 {
         return vec![fast(false, true, false)];
     }
+    if effort <= DEFAULT_EFFORT {
+        return vec![fast(false, true, true)];
+    }
     let mut v = vec![Predictor::Interp(cfg)];
-    if effort >= 5 && bin >= 3 {
+    if bin >= 3 {
         v.push(Predictor::Interp(interp::Config {
             tighten: true,
             ..cfg
         }));
     }
     v.push(Predictor::Weighted);
-    if effort > DEFAULT_EFFORT {
-        v.extend([fast(false, false, false), fast(true, false, false)]);
+    if effort > COMPACT_EFFORT {
+        v.extend([
+            fast(false, true, true),
+            fast(false, false, false),
+            fast(true, false, false),
+        ]);
     }
     v
 }
@@ -376,14 +388,20 @@ fn setup(r: &Raster, e: f64, margin: bool, effort: u8) -> Result<Option<Setup>> 
 
 /// Code the plane with one predictor: the payload (max error still 0) and the
 /// reconstruction in units.
-fn code(p: &Plane, pred: Predictor, s: &Setup, exceptions: &[u8]) -> Result<(Vec<u8>, Vec<i64>)> {
+fn code(
+    p: &Plane,
+    pred: Predictor,
+    s: &Setup,
+    exceptions: &[u8],
+    progress: &mut dyn FnMut(f64),
+) -> Result<(Vec<u8>, Vec<i64>)> {
     let mut c = BinEncoder {
         m: Models::new(),
         enc: Encoder::with_capacity(p.kinds.len() / 4),
     };
     if let Predictor::Fast(cfg) = pred {
         let cfg = fast::resolve(p, cfg);
-        let (weights, body, rec) = fast::encode(p, cfg)?;
+        let (weights, body, rec) = fast::encode(p, cfg, progress)?;
         let mut out = fixed_fields(
             match (cfg.lanes, cfg.tighten) {
                 (false, false) => CODING_FAST,
@@ -1105,7 +1123,7 @@ mod tests {
                     };
                     for pred in every_coding(w, h, bin) {
                         let what = format!("{name}, holes {holes}, bin {bin}, {pred:?}");
-                        let (payload, rec) = match code(&p, pred, &setup, &[]) {
+                        let (payload, rec) = match code(&p, pred, &setup, &[], &mut |_| {}) {
                             Ok(x) => x,
                             Err(e) => {
                                 assert!(matches!(pred, Predictor::Weighted), "{what}: {e}");
@@ -1157,7 +1175,7 @@ mod tests {
                     bin,
                 };
                 for pred in every_coding(w, h, bin) {
-                    let Ok((payload, _)) = code(&p, pred, &setup, &[]) else { continue };
+                    let Ok((payload, _)) = code(&p, pred, &setup, &[], &mut |_| {}) else { continue };
                     let sets = payload[3] as usize;
                     let nf = match pred {
                         Predictor::Weighted => weighted::NF,

@@ -42,7 +42,15 @@ pub struct SitesParams {
     pub norm: Norm,
     /// Height quantization step as a fraction of the error target (default 1.0).
     pub step_factor: Option<f64>,
+    /// Give up ([`Error::Unmet`] with [`SIZE_CAP_MESSAGE`]) once the sites chosen so far
+    /// already take more than this many bytes (`best`: the smallest candidate's payload;
+    /// more sites and repairs only add bytes). Checked at site counts that are powers of two.
+    pub size_cap: Option<usize>,
 }
+
+/// The message of the error [`encode`] gives when it stops at [`SitesParams::size_cap`].
+pub(crate) const SIZE_CAP_MESSAGE: &str =
+    "the sites method stopped: its sites already take more bytes than a smaller candidate";
 
 /// Statistics of an encoded sites section.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -600,6 +608,19 @@ fn modal_value(r: &Raster) -> Option<f64> {
     (n * 20 >= valid).then(|| f64::from_bits(bits))
 }
 
+/// A selection's sites as levels in importance order, each sorted by index.
+fn levels_of(sel: &select::Selection) -> Vec<Vec<(u32, i64)>> {
+    let mut levels: Vec<Vec<(u32, i64)>> = Vec::new();
+    let mut at = 0;
+    for n in level_sizes(sel.sites.len(), sel.hull) {
+        let mut l = sel.sites[at..at + n].to_vec();
+        l.sort_unstable();
+        levels.push(l);
+        at += n;
+    }
+    levels
+}
+
 /// Encode a raster as a sites-section payload; returns it with its statistics.
 pub fn encode(
     r: &Raster,
@@ -650,16 +671,17 @@ pub fn encode(
         step,
         offset,
     };
-    let sel = select::select(&samples, &sp, progress)?;
-    // Levels in importance order, each sorted by index.
-    let mut levels: Vec<Vec<(u32, i64)>> = Vec::new();
-    let mut at = 0;
-    for n in level_sizes(sel.sites.len(), sel.hull) {
-        let mut l = sel.sites[at..at + n].to_vec();
-        l.sort_unstable();
-        levels.push(l);
-        at += n;
-    }
+    let mut give_up = |sel: &select::Selection| {
+        params.size_cap.is_some_and(|cap| {
+            let mut st = SitesStats::default();
+            write_levels(&levels_of(sel), w, (step, offset), (0.0, 0.0), &mut st)
+                .is_ok_and(|p| p.len() > cap)
+        })
+    };
+    let Some(sel) = select::select_capped(&samples, &sp, progress, &mut give_up)? else {
+        return Err(Error::unmet(SIZE_CAP_MESSAGE));
+    };
+    let mut levels = levels_of(&sel);
     let mut mask_vec: Option<Vec<bool>> = r.mask.clone();
     for round in 0..=MAX_REPAIRS {
         let mut stats = SitesStats::default();
@@ -778,5 +800,34 @@ mod tests {
             let n_valid = valid.iter().filter(|&&v| v).count();
             assert!(checked > n_valid / 4, "{checked} of {n_valid} samples checked");
         }
+    }
+
+    /// `best`'s size cap: below the payload the sites would take, the encoder stops with
+    /// the cap's error (before it has chosen every site); at or above it, the payload is
+    /// the one written without a cap, byte for byte.
+    #[test]
+    fn the_size_cap_stops_the_encoder_only_when_it_is_passed() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/corpus/srtm3_N22W160_kauai.hgt");
+        let bytes = std::fs::read(path).expect("corpus/srtm3_N22W160_kauai.hgt");
+        let full = crate::formats::hgt::read(&bytes, "srtm3_N22W160_kauai.hgt", &Default::default())
+            .unwrap();
+        let r = full.crop(crate::model::Window { x: 420, y: 900, width: 256, height: 192 });
+        let header = Header::of(&r).unwrap();
+        let params = |size_cap| SitesParams {
+            max_error: Some(5.0),
+            rmse: None,
+            max_sites: None,
+            norm: Norm::Linf,
+            step_factor: None,
+            size_cap,
+        };
+        let (free, st) = encode(&r, &header, &params(None), &mut |_| {}).unwrap();
+        assert!(st.sites > 4 * select::GIVE_UP_FROM, "{} sites", st.sites);
+        let (capped, _) = encode(&r, &header, &params(Some(free.len())), &mut |_| {}).unwrap();
+        assert_eq!(capped, free);
+        let mut last = 0.0;
+        let err = encode(&r, &header, &params(Some(free.len() / 8)), &mut |f| last = f).unwrap_err();
+        assert_eq!(err.to_string(), Error::unmet(SIZE_CAP_MESSAGE).to_string());
+        assert!(last < 1.0, "stopped before the end ({last})");
     }
 }

@@ -335,6 +335,30 @@ impl State<'_> {
 
 /// Run the greedy refinement. `progress` gets the fraction done (by error or site budget).
 pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> Result<Selection> {
+    Ok(select_inner(s, p, progress, &mut |_| false)?.expect("never gives up"))
+}
+
+/// [`select`], asking `give_up` each time the site count reaches a power of two from
+/// [`GIVE_UP_FROM`] on whether to stop: then it returns `Ok(None)` (`best` stops the sites
+/// encoder once its payload passes the smallest candidate's).
+pub fn select_capped(
+    s: &Samples,
+    p: &SelectParams,
+    progress: &mut dyn FnMut(f64),
+    give_up: &mut dyn FnMut(&Selection) -> bool,
+) -> Result<Option<Selection>> {
+    select_inner(s, p, progress, give_up)
+}
+
+/// The first site count at which [`select_capped`] asks whether to give up.
+pub const GIVE_UP_FROM: usize = 512;
+
+fn select_inner(
+    s: &Samples,
+    p: &SelectParams,
+    progress: &mut dyn FnMut(f64),
+    give_up: &mut dyn FnMut(&Selection) -> bool,
+) -> Result<Option<Selection>> {
     if !(p.step > 0.0 && p.step.is_finite() && p.offset.is_finite()) {
         return Err(Error::invalid("height step must be a positive number"));
     }
@@ -342,7 +366,7 @@ pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> R
     let valid_count = (0..n).filter(|&i| (s.valid)(i)).count();
     let mut sel = Selection::default();
     if valid_count == 0 {
-        return Ok(sel);
+        return Ok(Some(sel));
     }
     let hull = hull(s);
     let mut surf = Surface::new();
@@ -458,6 +482,9 @@ pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> R
         st.is_site[i] = true;
         sel.sites.push((i as u32, code));
         sel.errors.push(e as f32);
+        if sel.sites.len() >= GIVE_UP_FROM && sel.sites.len().is_power_of_two() && give_up(&sel) {
+            return Ok(None);
+        }
         if debug && sel.sites.len().is_power_of_two() {
             eprintln!("select: {} sites, {} evaluations", sel.sites.len(), st.evals);
         }
@@ -486,5 +513,5 @@ pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> R
             st.evals as f64 / valid_count as f64
         );
     }
-    Ok(sel)
+    Ok(Some(sel))
 }

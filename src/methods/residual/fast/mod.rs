@@ -107,8 +107,9 @@ pub type Encoded = (Vec<[i16; NW]>, Vec<u8>, Vec<i64>);
 
 /// Encode the plane: the stencil weights (per pass with a correction, coarsest first), the
 /// fast coding's bytes (after the section's fixed fields, weights and exceptions) and the
-/// reconstruction.
-pub fn encode(p: &Plane, cfg: Config) -> Result<Encoded> {
+/// reconstruction. `progress` gets the fraction done after the stencil fits, the passes
+/// and the tables.
+pub fn encode(p: &Plane, cfg: Config, progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
     let (w, h) = (p.width, p.height);
     let n = w * h;
     let mut rec = vec![0i64; n];
@@ -140,8 +141,9 @@ pub fn encode(p: &Plane, cfg: Config) -> Result<Encoded> {
             pass.weights = f;
         }
     }
+    progress(0.35);
     if cfg.lanes {
-        return encode_lanes(p, cfg, &all, weights);
+        return encode_lanes(p, cfg, &all, weights, progress);
     }
     let g = Global::new(p);
     for pass in all {
@@ -155,6 +157,7 @@ pub fn encode(p: &Plane, cfg: Config) -> Result<Encoded> {
             Ok,
         )?);
     }
+    progress(0.75);
     // Tables from the counts of every stream.
     let mut counts = vec![[0u64; ALPHABET]; NCTX];
     for s in &streams {
@@ -455,7 +458,13 @@ pub fn decode(
 
 /// The lane coding's encode (after the stencils are fitted): tokens of every band, tables
 /// from their counts, then each band's interleaved stream.
-fn encode_lanes(p: &Plane, cfg: Config, all: &[Pass], weights: Vec<[i16; NW]>) -> Result<Encoded> {
+fn encode_lanes(
+    p: &Plane,
+    cfg: Config,
+    all: &[Pass],
+    weights: Vec<[i16; NW]>,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Encoded> {
     let (w, h) = (p.width, p.height);
     let bands: Vec<Vec<(usize, usize)>> = all.iter().map(|pass| pass.bands(w, h, cfg.band_log2)).collect();
     let chosen: Vec<Range<usize>> = bands.iter().map(|b| 0..b.len()).collect();
@@ -473,6 +482,7 @@ fn encode_lanes(p: &Plane, cfg: Config, all: &[Pass], weights: Vec<[i16; NW]>) -
         let (r, s) = run_lanes::<i64, _, _>(p, None, all, &bands, &chosen, make, Ok)?;
         (r.par_iter().map(|&v| v + lo).collect(), s)
     };
+    progress(0.75);
     let mut counts = vec![[0u64; ALPHABET]; lanes::LNCTX];
     for s in &streams {
         for &(c, t, _) in &s.syms {
@@ -664,7 +674,7 @@ mod tests {
         ] {
             let p = test_plane(w, h, &kinds, &values, bin);
             let cfg = test_config(ls, tighten, lanes);
-            let (wts, bytes, rec) = encode(&p, cfg).unwrap();
+            let (wts, bytes, rec) = encode(&p, cfg, &mut |_| {}).unwrap();
             assert!(wts.len() <= 2 * ls as usize);
             for (i, (&r, &k)) in rec.iter().zip(&kinds).enumerate() {
                 if k == CODED {
@@ -738,7 +748,7 @@ mod tests {
             let p = test_plane(w, h, &kinds, &values, bin);
             let cfg = test_config(ls, tighten, lanes);
             let what = format!("{w}x{h}, bin {bin}, {ls} stencil levels, lanes {lanes}");
-            let (wts, bytes, rec) = encode(&p, cfg).unwrap();
+            let (wts, bytes, rec) = encode(&p, cfg, &mut |_| {}).unwrap();
             assert_eq!(wts.len(), 2 * ls as usize, "{what}: a stencil on every level it may");
             let all = passes(cfg, bin);
             let bands: Vec<_> = all.iter().map(|pass| pass.bands(w, h, 10)).collect();
