@@ -71,6 +71,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         max_error: None,
                         k: Some(k),
                         fixed_s: fixed,
+                        size_cap: None,
                     },
                 )?;
                 let header = vtz::internals::container::Header::of(&r)?;

@@ -299,12 +299,19 @@ pub(crate) struct EncodeJob<'a> {
     /// [`LEVELS_FIRST_MARGIN`].
     pub levels_first: bool,
     /// `best`: the smallest candidate's payload so far; a method that can tell early that
-    /// it will be larger may stop with [`Error::Unmet`] (the sites encoder does).
+    /// it will be larger may stop with [`Error::Unmet`] and [`SIZE_CAP_MESSAGE`] (the sites
+    /// and FIS encoders do).
     pub size_cap: Option<usize>,
 }
 
-/// What a coding without coarse levels (the residual layer's weighted scan) must save over
-/// the smallest coding with them to be kept in a version-4 tile: an overview reads the whole
+/// The message of the error a method gives when it stops at [`EncodeJob::size_cap`]: not a
+/// failure to meet the request, so `best` does not report it.
+pub(crate) const SIZE_CAP_MESSAGE: &str =
+    "stopped early: this method's payload would be larger than a candidate's already encoded";
+
+/// What a coding without coarse levels (the residual layer's weighted scan, and since
+/// issue 37 every method but the residual layer in `best`) must save over the smallest
+/// coding with them to be kept in a version-4 tile: an overview reads the whole
 /// block of such a tile, the first chunks of the others'. Measured on the 20000² mosaic of
 /// benches/tiles at 1 m (benches/README.md, "Remote reads"): the file grows 1.7 % (0.292× to
 /// 0.297× the LERC COG with its overviews), tiles with coarse levels first go from 69 to 265

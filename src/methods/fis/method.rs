@@ -59,6 +59,7 @@ impl Representation for Fis {
                 max_error: job.max_error.filter(|&e| e > 0.0),
                 k: o.k,
                 fixed_s: o.s,
+                size_cap: job.size_cap,
             },
             progress,
         )?;

@@ -62,6 +62,11 @@ pub struct FisParams {
     /// One vertical scaling factor for every rectangle (the paper's s = 0.02) instead of
     /// fitted ones.
     pub fixed_s: Option<f64>,
+    /// Give up (`Error::Unmet` with the methods' size-cap message) when the coarsest spacing
+    /// that meets the bound codes to more than twice this many bytes at the finest height
+    /// step (`best`: the smallest candidate's payload; the coarser steps tried after it
+    /// save less than half).
+    pub size_cap: Option<usize>,
 }
 
 /// What the FIS encoder chose and achieved (on the valid samples).
@@ -681,10 +686,15 @@ pub(crate) fn encode_with(
     };
     // Does spacing ks[idx] meet the bound with the finest height step? (Errors grow with k,
     // so bisect for the coarsest spacing that does.)
+    // The payload size of each spacing that met the bound (at the finest step).
+    let mut sizes = vec![None; ks.len()];
     let mut meets = |idx: usize| -> Result<bool> {
-        let (_, dec) = one(ks[idx], height_step(header, e * 0.25))?;
+        let (model, dec) = one(ks[idx], height_step(header, e * 0.25))?;
         let maxe = errors(r, &dec).0;
         closest = closest.min(maxe);
+        if maxe <= e && p.size_cap.is_some() {
+            sizes[idx] = Some(model.write(maxe).len());
+        }
         Ok(maxe <= e)
     };
     let (mut lo, mut hi) = (0usize, ks.len());
@@ -695,6 +705,11 @@ pub(crate) fn encode_with(
             hi = mid;
         } else {
             lo = mid + 1;
+        }
+    }
+    if let (Some(cap), Some(Some(size))) = (p.size_cap, sizes.get(lo)) {
+        if *size > 2 * cap {
+            return Err(Error::unmet(crate::methods::SIZE_CAP_MESSAGE));
         }
     }
     // The coarsest spacing that met the bound and one finer (it may code smaller), each

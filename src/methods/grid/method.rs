@@ -1,6 +1,6 @@
 //! The grid representation as the registry sees it.
 
-use super::{GridParams, decode, encode};
+use super::{GridParams, decode};
 use crate::container::SectionKind;
 use crate::error::Result;
 use crate::methods::{DecodeJob, EncodeJob, Encoded, Identity, Representation};
@@ -26,12 +26,13 @@ impl Representation for Grid {
         // processes) against the residual layer's lane coding (the default effort) 0.18 / 0.15 s.
         0.9
     }
-    fn encode(&self, job: &EncodeJob, _progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
-        let (payload, bound) = encode(
+    fn encode(&self, job: &EncodeJob, progress: &mut dyn FnMut(f64)) -> Result<Encoded> {
+        let (payload, bound) = super::encode(
             job.raster,
             &GridParams {
                 max_error: job.max_error.unwrap_or(0.0),
             },
+            progress,
         )?;
         Ok((payload, bound).into())
     }

@@ -120,7 +120,12 @@ fn int_codes(r: &Raster, dq: Dequant, tol: f64) -> Option<Vec<i64>> {
 
 /// Encode a raster's samples as a grid-section payload. Returns the payload and the max
 /// error it guarantees (0 for lossless).
-pub fn encode(r: &Raster, params: &GridParams) -> Result<(Vec<u8>, f64)> {
+/// `progress` gets the fraction done (the quantization, the coding pass, deflate).
+pub(crate) fn encode(
+    r: &Raster,
+    params: &GridParams,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(Vec<u8>, f64)> {
     if !(params.max_error >= 0.0 && params.max_error.is_finite()) {
         return Err(Error::invalid(format!(
             "max error {} must be a finite number ≥ 0",
@@ -229,7 +234,8 @@ pub fn encode(r: &Raster, params: &GridParams) -> Result<(Vec<u8>, f64)> {
             )
         }
     };
-    Ok((write_payload(r, dq, codes, bound), bound))
+    progress(0.2);
+    Ok((write_payload(r, dq, codes, bound, progress), bound))
 }
 
 fn encode_f64_keys(r: &Raster) -> Result<(Vec<u8>, f64)> {
@@ -241,11 +247,17 @@ fn encode_f64_keys(r: &Raster) -> Result<(Vec<u8>, f64)> {
         int_out: None,
     };
     let codes = r.data.iter().map(|&v| f64_key(v)).collect();
-    Ok((write_payload(r, dq, codes, 0.0), 0.0))
+    Ok((write_payload(r, dq, codes, 0.0, &mut |_| {}), 0.0))
 }
 
-fn write_payload(r: &Raster, dq: Dequant, codes: Vec<i64>, bound: f64) -> Vec<u8> {
-    write_payload_as(r, dq, codes, bound, None)
+fn write_payload(
+    r: &Raster,
+    dq: Dequant,
+    codes: Vec<i64>,
+    bound: f64,
+    progress: &mut dyn FnMut(f64),
+) -> Vec<u8> {
+    write_payload_as(r, dq, codes, bound, None, progress)
 }
 
 /// [`write_payload`] with the residual coding forced (`Some`) or the smaller one (`None`).
@@ -255,6 +267,7 @@ fn write_payload_as(
     mut codes: Vec<i64>,
     bound: f64,
     force: Option<u8>,
+    progress: &mut dyn FnMut(f64),
 ) -> Vec<u8> {
     use crate::entropy::range::{Encoder, IntModel};
     let w = r.width;
@@ -274,7 +287,9 @@ fn write_payload_as(
             codes[i] = p;
         }
     }
+    progress(0.6);
     let deflated = entropy::deflate(&stream);
+    progress(0.95);
     let ranged = enc.finish();
     let use_range = match force {
         Some(k) => k == ENTROPY_RANGE,
@@ -437,7 +452,7 @@ mod tests {
             int_out: None,
         };
         for kind in [ENTROPY_DEFLATE, ENTROPY_RANGE] {
-            let payload = write_payload_as(&r, dq, codes.clone(), 0.0, Some(kind));
+            let payload = write_payload_as(&r, dq, codes.clone(), 0.0, Some(kind), &mut |_| {});
             assert_eq!(payload[2], kind);
             let back = decode(&payload, &header, r.mask.as_deref()).unwrap();
             for (i, &b) in back.iter().enumerate() {
