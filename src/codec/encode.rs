@@ -580,6 +580,17 @@ fn contenders(
     {
         return all();
     }
+    // Nothing left to code (every sample nodata or in a flat region, as a chunk of open
+    // sea): every method writes a few bytes, and the slow ones (FIS, Haar: seconds on a
+    // 900² chunk) cannot gain more than that.
+    if raster.valid_count() == 0 {
+        done();
+        return Ok(runs
+            .iter()
+            .copied()
+            .filter(|(m, _)| is(*m, Method::RESIDUAL) || is(*m, Method::GRID))
+            .collect());
+    }
     let Some(probe) = sample_bands(raster) else {
         return all();
     };
