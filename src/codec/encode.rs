@@ -170,7 +170,7 @@ pub(crate) fn encode_parts(
         let cost = |k: Method| k.0.relative_cost();
         let probe = 1.5 / PROBE_SHARE as f64 * (cost(Method::RESIDUAL) + cost(Method::GRID));
         let ps = probe / (probe + cost(Method::RESIDUAL));
-        let runs = contenders(&runs, raster, opts, &mut |f| progress(ps * f))?;
+        let (runs, grid_estimate) = contenders(&runs, raster, opts, &mut |f| progress(ps * f))?;
         let mut after = |f: f64| progress(ps + (1.0 - ps) * f);
         let progress: &mut dyn FnMut(f64) = &mut after;
         // The bar's shares follow each stage's expected time (`relative_cost`): the trial
@@ -196,9 +196,17 @@ pub(crate) fn encode_parts(
         } else {
             runs
         };
-        // The cheapest first: each later one is told the smallest payload so far, and the
-        // sites encoder (the slowest) stops as soon as its sites take more.
-        short.sort_by(|a, b| a.0.relative_cost().total_cmp(&b.0.relative_cost()));
+        // The residual layer first (the usual winner, and among the cheapest), then the
+        // others by cost: each later one is told the smallest payload so far, and the sites
+        // and FIS encoders stop once they would be larger.
+        let rank = |m: &dyn Representation| {
+            if m.name() == Method::RESIDUAL.name() {
+                0.0
+            } else {
+                m.relative_cost()
+            }
+        };
+        short.sort_by(|a, b| rank(a.0).total_cmp(&rank(b.0)));
         let costs: Vec<f64> = short.iter().map(|(m, _)| m.relative_cost()).collect();
         let total: f64 = costs.iter().sum();
         let mut last_err = None;
@@ -209,6 +217,14 @@ pub(crate) fn encode_parts(
                 let f = f.clamp(0.0, 1.0);
                 progress(share + (1.0 - share) * (before + costs[i] * f) / total)
             };
+            // The grid, kept by the probe's two estimates, is left out when its estimate
+            // is above the residual layer's actual payload by the probe's margin.
+            if let (Some(g), Some(c)) = (grid_estimate, cap) {
+                if m.name() == Method::GRID.name() && g > c as f64 * PROBE_GRID_MARGIN {
+                    p(1.0);
+                    continue;
+                }
+            }
             if !encoded.iter().any(|x| x.name() == m.name()) {
                 encoded.push(Method(m));
             }
@@ -556,18 +572,19 @@ fn sample_bands(raster: &Raster) -> Option<Raster> {
 /// Haar never won a cell of the corpus table, and is not tried. Everything is tried when
 /// the request names one method's own settings, when the residual layer is not among
 /// `runs`, when the raster is too small to sample, or when the residual layer cannot meet
-/// the request on the probe.
+/// the request on the probe. Also returns the grid's estimate (payload bytes), which `best`
+/// holds against the residual layer's actual payload before it encodes the grid.
 fn contenders(
     runs: &[(&'static dyn Representation, Option<f64>)],
     raster: &Raster,
     opts: &EncodeOptions,
     progress: &mut dyn FnMut(f64),
-) -> Result<Vec<(&'static dyn Representation, Option<f64>)>> {
+) -> Result<(Vec<Run>, Option<f64>)> {
     let progress = std::cell::RefCell::new(progress);
     let done = || (progress.borrow_mut())(1.0);
     let all = || {
         done();
-        Ok(runs.to_vec())
+        Ok((runs.to_vec(), None))
     };
     let is = |m: &dyn Representation, k: Method| m.name() == k.name();
     let Some(&(res, res_e)) = runs.iter().find(|(m, _)| is(*m, Method::RESIDUAL)) else {
@@ -585,11 +602,13 @@ fn contenders(
     // 900² chunk) cannot gain more than that.
     if raster.valid_count() == 0 {
         done();
-        return Ok(runs
-            .iter()
-            .copied()
-            .filter(|(m, _)| is(*m, Method::RESIDUAL) || is(*m, Method::GRID))
-            .collect());
+        return Ok((
+            runs.iter()
+                .copied()
+                .filter(|(m, _)| is(*m, Method::RESIDUAL) || is(*m, Method::GRID))
+                .collect(),
+            None,
+        ));
     }
     let Some(probe) = sample_bands(raster) else {
         return all();
@@ -635,6 +654,7 @@ fn contenders(
     let rate = r * 8.0 / n as f64;
     let grid_too = !lossy || rate >= PROBE_LOW_RATE;
     let mut keep = Vec::new();
+    let mut grid_estimate = None;
     for &(m, e) in runs {
         let k = if is(m, Method::RESIDUAL) {
             true
@@ -644,7 +664,10 @@ fn contenders(
             grid_too
                 && len(&probe, &header, m, e).is_some_and(|g| {
                     match (estimate(r, res, res_e), estimate(g, m, e)) {
-                        (Some(r), Some(g)) => g <= r * PROBE_GRID_MARGIN,
+                        (Some(r), Some(g)) => {
+                            grid_estimate = Some(g);
+                            g <= r * PROBE_GRID_MARGIN
+                        }
                         _ => true,
                     }
                 })
@@ -658,7 +681,7 @@ fn contenders(
         }
     }
     done();
-    Ok(keep)
+    Ok((keep, grid_estimate))
 }
 
 /// The progress of the `i`-th of `n` encodes as its slice of the whole, so that several
