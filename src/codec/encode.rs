@@ -218,9 +218,9 @@ pub(crate) fn encode_parts(
                 progress(share + (1.0 - share) * (before + costs[i] * f) / total)
             };
             // The grid, kept by the probe's two estimates, is left out when its estimate
-            // is above the residual layer's actual payload by the probe's margin.
+            // is above the residual layer's actual payload by GRID_ACTUAL_MARGIN.
             if let (Some(g), Some(c)) = (grid_estimate, cap) {
-                if m.name() == Method::GRID.name() && g > c as f64 * PROBE_GRID_MARGIN {
+                if m.name() == Method::GRID.name() && g > c as f64 * GRID_ACTUAL_MARGIN {
                     p(1.0);
                     continue;
                 }
@@ -516,6 +516,11 @@ const PROBE_BANDS: usize = 8;
 /// estimates from the probe and its first half ([`contenders`]) are closer, and every
 /// corpus cell the grid wins has an estimated ratio of at most 1.000.
 const PROBE_GRID_MARGIN: f64 = 1.03;
+/// The grid is encoded in full only when its probe estimate is within this factor of the
+/// residual layer's actual payload. Measured (10 corpus rasters × 1 m, 0.1 %, 1 %, 3 %):
+/// where the grid won, its estimate was 0.90–1.11× the residual layer's payload (Aleutians
+/// at 1 m 1.110, the Delft DSM at 3 % 1.084); where the residual layer won, 1.02–5.5×.
+const GRID_ACTUAL_MARGIN: f64 = 1.15;
 /// Below this many bits per sample of the residual layer on the probe, the methods that win
 /// at low rates (sibson's sites, FIS) are tried too.
 const PROBE_LOW_RATE: f64 = 0.5;
