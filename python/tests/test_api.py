@@ -73,13 +73,14 @@ def test_corpus_rasters_hold_the_bound_and_keep_georeferencing():
 
 
 def test_effort_chooses_the_residual_coding_and_keeps_the_bound():
-    """effort=1 writes the residual layer's lane coding: other bytes than the default
-    effort's (5), and both hold the bound on a real raster; None is the default itself."""
+    """effort=6 writes the residual layer's compact (range-coded) coding: other bytes than
+    the default effort's (5, the lane coding, which effort 1 also writes on this integer
+    raster), and all hold the bound on a real raster; None is the default itself."""
     a, prof = vtz.read(KAUAI)
     nodata = prof["nodata"]
     valid = a != nodata
     streams = {}
-    for effort in (None, 1, 5, 9):
+    for effort in (None, 1, 5, 6, 9):
         b = vtz.encode(a, max_error=1, nodata=nodata, method="residual", effort=effort)
         assert vtz.info(b)["method"] == "residual"
         d = vtz.decode(b)
@@ -87,10 +88,12 @@ def test_effort_chooses_the_residual_coding_and_keeps_the_bound():
         assert np.array_equal(d[~valid], a[~valid])
         streams[effort] = b
     assert streams[None] == streams[5]
-    assert streams[1] != streams[5]
+    assert streams[1] == streams[5]
+    assert streams[6] != streams[5]
+    assert len(streams[6]) < len(streams[5])
     # numpy integers are integers too
     assert vtz.encode(a, max_error=1, nodata=nodata, method="residual",
-                      effort=np.int8(1)) == streams[1]
+                      effort=np.int8(6)) == streams[6]
 
 
 @pytest.mark.parametrize("effort", [0, 10, -1, 300, 2**70, 2.0, "5", True])

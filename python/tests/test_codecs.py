@@ -166,13 +166,13 @@ def test_numcodecs_effort_in_the_config():
     before it existed (none) still loads as the default."""
     a, profile = corpus("srtm3_N22W160_kauai.hgt")
     a = np.ascontiguousarray(a[:400, :400])
-    codec = Vtz(max_error=1.0, method="residual", effort=1)
+    codec = Vtz(max_error=1.0, method="residual", effort=6)
     config = codec.get_config()
-    assert config["effort"] == 1
+    assert config["effort"] == 6
     back = numcodecs.get_codec(json.loads(json.dumps(config, allow_nan=False)))
-    assert back == codec and back.effort == 1
+    assert back == codec and back.effort == 6
     enc = back.encode(a)
-    assert enc == vtz.encode(a, max_error=1.0, method="residual", effort=1)
+    assert enc == vtz.encode(a, max_error=1.0, method="residual", effort=6)
     assert enc != Vtz(max_error=1.0, method="residual").encode(a)
     check_decoded(a, back.decode(enc), 1.0)
     old = {"id": "vtz", "max_error": 1.0, "lossless": False, "nodata": None,
