@@ -338,9 +338,9 @@ pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> R
     Ok(select_inner(s, p, progress, &mut |_| false)?.expect("never gives up"))
 }
 
-/// [`select`], asking `give_up` each time the site count reaches a power of two from
-/// [`GIVE_UP_FROM`] on whether to stop: then it returns `Ok(None)` (`best` stops the sites
-/// encoder once its payload passes the smallest candidate's).
+/// [`select`], asking `give_up` whether to stop at [`GIVE_UP_FROM`] sites and then each
+/// time the count has grown by a quarter: then it returns `Ok(None)` (`best` stops the
+/// sites encoder once its payload passes the smallest candidate's).
 pub fn select_capped(
     s: &Samples,
     p: &SelectParams,
@@ -429,6 +429,7 @@ fn select_inner(
     let debug = std::env::var_os("VTZ_DEBUG_SELECT").is_some();
     let target_sites = p.max_sites.unwrap_or(usize::MAX).min(valid_count);
     let mut last_report = 0usize;
+    let mut next_check = GIVE_UP_FROM;
     loop {
         if sel.sites.len() >= target_sites {
             break;
@@ -482,8 +483,13 @@ fn select_inner(
         st.is_site[i] = true;
         sel.sites.push((i as u32, code));
         sel.errors.push(e as f32);
-        if sel.sites.len() >= GIVE_UP_FROM && sel.sites.len().is_power_of_two() && give_up(&sel) {
-            return Ok(None);
+        if sel.sites.len() >= next_check {
+            // Every quarter more sites: the encoder stops within 1.25× the sites at which
+            // it passes the cap (each check writes the payload so far: about 5 writes in all).
+            next_check = sel.sites.len() + sel.sites.len() / 4;
+            if give_up(&sel) {
+                return Ok(None);
+            }
         }
         if debug && sel.sites.len().is_power_of_two() {
             eprintln!("select: {} sites, {} evaluations", sel.sites.len(), st.evals);
