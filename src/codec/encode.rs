@@ -160,125 +160,10 @@ pub(crate) fn encode_parts(
     let mut encoded: Vec<Method> = Vec::new();
     let mut notes: Vec<String> = Vec::new();
     if opts.methods.is_empty() {
-        // `best`: the methods that can meet the request, narrowed by a probe on a sample of
-        // rows and (large rasters only) a trial on sample tiles, each encoded in full; the
-        // smallest wins.
-        let runs = best_runs(raster, opts, e);
-        // The probe: the residual layer (the usual winner) and the grid on a sample of
-        // rows; only the methods it cannot rule out are tried. Its share of the bar: the probe and its first half (1.5/16 of the rows) through
-        // the residual layer and the grid, against one full encode of the residual layer.
-        let cost = |k: Method| k.0.relative_cost();
-        let probe = 1.5 / PROBE_SHARE as f64 * (cost(Method::RESIDUAL) + cost(Method::GRID));
-        let ps = probe / (probe + cost(Method::RESIDUAL));
-        let (runs, grid_estimate) = contenders(&runs, raster, opts, &mut |f| progress(ps * f))?;
-        let mut after = |f: f64| progress(ps + (1.0 - ps) * f);
-        let progress: &mut dyn FnMut(f64) = &mut after;
-        // The bar's shares follow each stage's expected time (`relative_cost`): the trial
-        // against at least the cheapest full encode, then the full encodes.
-        // The probe has compared the residual layer and the grid; the trial is for the
-        // methods it could not rule out beside them.
-        let trial = raster.len() > EXHAUSTIVE_MAX_SAMPLES && runs.len() > 2;
-        let share = if trial {
-            let tiles = (TRIAL_TILE * TRIAL_TILE * TRIAL_TILES[0] * TRIAL_TILES[1]) as f64;
-            let t: f64 = runs.iter().map(|(m, _)| m.relative_cost()).sum::<f64>() * tiles;
-            let cheapest = runs
-                .iter()
-                .map(|(m, _)| m.relative_cost())
-                .fold(f64::INFINITY, f64::min);
-            t / (t + cheapest * raster.len() as f64)
-        } else {
-            0.0
-        };
-        // Why each method left out could not meet the request (for the note below).
-        let mut why: Vec<(&'static str, String)> = Vec::new();
-        let mut short = if trial {
-            shortlist(&runs, raster, opts, &mut why, &mut |f| progress(share * f))?
-        } else {
-            runs
-        };
-        // The residual layer first (the usual winner, and among the cheapest), then the
-        // others by cost: each later one is told the smallest payload so far, and the sites
-        // and FIS encoders stop once they would be larger.
-        let rank = |m: &dyn Representation| {
-            if m.name() == Method::RESIDUAL.name() {
-                0.0
-            } else {
-                m.relative_cost()
-            }
-        };
-        short.sort_by(|a, b| rank(a.0).total_cmp(&rank(b.0)));
-        let costs: Vec<f64> = short.iter().map(|(m, _)| m.relative_cost()).collect();
-        let total: f64 = costs.iter().sum();
-        let mut last_err = None;
-        for (i, &(m, e)) in short.iter().enumerate() {
-            let cap = cands.iter().map(|c| c.enc.payload.len()).min();
-            let before: f64 = costs[..i].iter().sum();
-            let mut p = |f: f64| {
-                let f = f.clamp(0.0, 1.0);
-                progress(share + (1.0 - share) * (before + costs[i] * f) / total)
-            };
-            // The grid, kept by the probe's two estimates, is left out when its estimate
-            // is above the residual layer's actual payload by GRID_ACTUAL_MARGIN.
-            if let (Some(g), Some(c)) = (grid_estimate, cap) {
-                if m.name() == Method::GRID.name() && g > c as f64 * GRID_ACTUAL_MARGIN {
-                    p(1.0);
-                    continue;
-                }
-            }
-            if !encoded.iter().any(|x| x.name() == m.name()) {
-                encoded.push(Method(m));
-            }
-            match encode_method(m, raster, &header, opts, e, flat, cap, &mut p) {
-                Ok(c) => cands.push(c),
-                // Stopped because it would be larger than a candidate: not a failure.
-                Err(Error::Unmet { what }) if what == crate::methods::SIZE_CAP_MESSAGE => p(1.0),
-                Err(err) => {
-                    why.push((m.name(), err.to_string()));
-                    last_err = Some(err);
-                }
-            }
-        }
-        if cands.is_empty() {
-            return Err(last_err.unwrap_or_else(|| {
-                Error::unsupported("no method of this build can meet the request")
-            }));
-        }
-        // In a version-4 tile (`levels_first`) a method without coarse levels (every one
-        // but the residual layer) must save more than LEVELS_FIRST_MARGIN: an overview reads
-        // its whole block.
-        let weight = |c: &Candidate| {
-            let flat = opts.levels_first && c.method.name() != Method::RESIDUAL.name();
-            c.enc.payload.len() as f64
-                / if flat {
-                    1.0 - crate::methods::LEVELS_FIRST_MARGIN
-                } else {
-                    1.0
-                }
-        };
-        let i = (0..cands.len())
-            .min_by(|&a, &b| weight(&cands[a]).total_cmp(&weight(&cands[b])))
-            .expect("non-empty");
-        // A lossy request that only lossless coding answered: never silently (the file may
-        // be many times the size a lossy file would have).
-        let lossy = e.is_some_and(|b| b > 0.0 && raster.value_step().is_none_or(|q| b >= q / 2.0));
-        if lossy && cands.iter().all(|c| c.enc.bound == 0.0) {
-            let reasons: Vec<String> = why
-                .iter()
-                .map(|(m, r)| format!("{m}: {}", r.trim_start_matches("cannot meet the request: ")))
-                .collect();
-            notes.push(format!(
-                "no method met max error {} lossily on this raster, so it is stored losslessly \
-                 ({} bytes){}",
-                crate::metrics::num(e.unwrap_or(0.0)),
-                cands[i].enc.payload.len(),
-                if reasons.is_empty() {
-                    String::new()
-                } else {
-                    format!(": {}", reasons.join("; "))
-                }
-            ));
-        }
-        cands = vec![cands.swap_remove(i)];
+        let (chosen, tried, said) = encode_best(raster, &header, opts, e, flat, progress)?;
+        cands.push(chosen);
+        encoded = tried;
+        notes.extend(said);
     } else {
         let n = opts.methods.len();
         let mut first_err = None;
@@ -383,6 +268,145 @@ type Run = (&'static dyn Representation, Option<f64>);
 /// Measured: Monterey Bay at 10 % of the range, where the tiles put FIS (722 bytes) ahead
 /// of the sites (467 bytes in full).
 const TRIAL_LOW_RATE: f64 = 0.25;
+
+/// `best`: the methods that can meet the request, narrowed by a probe on a sample of rows
+/// ([`contenders`]) and (large rasters only) a trial on sample tiles ([`shortlist`]), each
+/// encoded in full (the residual layer first, each later one capped by the smallest payload
+/// so far); the smallest wins. Returns it, the methods encoded, and notes for the report.
+fn encode_best(
+    raster: &Raster,
+    header: &Header,
+    opts: &EncodeOptions,
+    e: Option<f64>,
+    flat: Option<&[f64]>,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(Candidate, Vec<Method>, Vec<String>)> {
+    let mut cands: Vec<Candidate> = Vec::new();
+    let mut encoded: Vec<Method> = Vec::new();
+    let mut notes: Vec<String> = Vec::new();
+    let runs = best_runs(raster, opts, e);
+    // The probe: the residual layer (the usual winner) and the grid on a sample of rows;
+    // only the methods it cannot rule out are tried. Its share of the bar: the probe and
+    // its first half (1.5/16 of the rows) through the residual layer and the grid, against
+    // one full encode of the residual layer.
+    let cost = |k: Method| k.0.relative_cost();
+    let probe = 1.5 / PROBE_SHARE as f64 * (cost(Method::RESIDUAL) + cost(Method::GRID));
+    let ps = probe / (probe + cost(Method::RESIDUAL));
+    let (runs, grid_estimate) = contenders(&runs, raster, opts, &mut |f| progress(ps * f))?;
+    let mut after = |f: f64| progress(ps + (1.0 - ps) * f);
+    let progress: &mut dyn FnMut(f64) = &mut after;
+    // The bar's shares follow each stage's expected time (`relative_cost`): the trial
+    // against at least the cheapest full encode, then the full encodes.
+    // The probe has compared the residual layer and the grid; the trial is for the
+    // methods it could not rule out beside them.
+    let trial = raster.len() > EXHAUSTIVE_MAX_SAMPLES && runs.len() > 2;
+    let share = if trial {
+        let tiles = (TRIAL_TILE * TRIAL_TILE * TRIAL_TILES[0] * TRIAL_TILES[1]) as f64;
+        let t: f64 = runs.iter().map(|(m, _)| m.relative_cost()).sum::<f64>() * tiles;
+        let cheapest = runs
+            .iter()
+            .map(|(m, _)| m.relative_cost())
+            .fold(f64::INFINITY, f64::min);
+        t / (t + cheapest * raster.len() as f64)
+    } else {
+        0.0
+    };
+    // Why each method left out could not meet the request (for the note below).
+    let mut why: Vec<(&'static str, String)> = Vec::new();
+    let mut short = if trial {
+        shortlist(&runs, raster, opts, &mut why, &mut |f| progress(share * f))?
+    } else {
+        runs
+    };
+    // The residual layer first (the usual winner, and among the cheapest), then the
+    // others by cost: each later one is told the smallest payload so far, and the sites
+    // and FIS encoders stop once they would be larger.
+    let rank = |m: &dyn Representation| {
+        if m.name() == Method::RESIDUAL.name() {
+            0.0
+        } else {
+            m.relative_cost()
+        }
+    };
+    short.sort_by(|a, b| rank(a.0).total_cmp(&rank(b.0)));
+    let costs: Vec<f64> = short.iter().map(|(m, _)| m.relative_cost()).collect();
+    let total: f64 = costs.iter().sum();
+    let mut last_err = None;
+    for (i, &(m, e)) in short.iter().enumerate() {
+        let cap = cands.iter().map(|c| c.enc.payload.len()).min();
+        let before: f64 = costs[..i].iter().sum();
+        let mut p = |f: f64| {
+            let f = f.clamp(0.0, 1.0);
+            progress(share + (1.0 - share) * (before + costs[i] * f) / total)
+        };
+        // On a large raster the grid, kept by the probe's two estimates, is left out when
+        // its estimate is above the residual layer's actual payload by GRID_ACTUAL_MARGIN
+        // (on a small one the probe's fixed costs skew the estimate: a 300 × 200 window,
+        // mostly sea, had the grid's 263 bytes against the residual layer's 442).
+        if let (Some(g), Some(c)) = (grid_estimate, cap) {
+            if m.name() == Method::GRID.name()
+                && raster.len() > EXHAUSTIVE_MAX_SAMPLES
+                && g > c as f64 * GRID_ACTUAL_MARGIN
+            {
+                p(1.0);
+                continue;
+            }
+        }
+        if !encoded.iter().any(|x| x.name() == m.name()) {
+            encoded.push(Method(m));
+        }
+        match encode_method(m, raster, header, opts, e, flat, cap, &mut p) {
+            Ok(c) => cands.push(c),
+            // Stopped because it would be larger than a candidate: not a failure.
+            Err(Error::Unmet { what }) if what == crate::methods::SIZE_CAP_MESSAGE => p(1.0),
+            Err(err) => {
+                why.push((m.name(), err.to_string()));
+                last_err = Some(err);
+            }
+        }
+    }
+    if cands.is_empty() {
+        return Err(last_err.unwrap_or_else(|| {
+            Error::unsupported("no method of this build can meet the request")
+        }));
+    }
+    // In a version-4 tile (`levels_first`) a method without coarse levels (every one
+    // but the residual layer) must save more than LEVELS_FIRST_MARGIN: an overview reads
+    // its whole block.
+    let weight = |c: &Candidate| {
+        let flat = opts.levels_first && c.method.name() != Method::RESIDUAL.name();
+        c.enc.payload.len() as f64
+            / if flat {
+                1.0 - crate::methods::LEVELS_FIRST_MARGIN
+            } else {
+                1.0
+            }
+    };
+    let i = (0..cands.len())
+        .min_by(|&a, &b| weight(&cands[a]).total_cmp(&weight(&cands[b])))
+        .expect("non-empty");
+    // A lossy request that only lossless coding answered: never silently (the file may
+    // be many times the size a lossy file would have).
+    let lossy = e.is_some_and(|b| b > 0.0 && raster.value_step().is_none_or(|q| b >= q / 2.0));
+    if lossy && cands.iter().all(|c| c.enc.bound == 0.0) {
+        let reasons: Vec<String> = why
+            .iter()
+            .map(|(m, r)| format!("{m}: {}", r.trim_start_matches("cannot meet the request: ")))
+            .collect();
+        notes.push(format!(
+            "no method met max error {} lossily on this raster, so it is stored losslessly \
+             ({} bytes){}",
+            crate::metrics::num(e.unwrap_or(0.0)),
+            cands[i].enc.payload.len(),
+            if reasons.is_empty() {
+                String::new()
+            } else {
+                format!(": {}", reasons.join("; "))
+            }
+        ));
+    }
+    Ok((cands.swap_remove(i), encoded, notes))
+}
 
 /// What `best` may try: (method, the bound it is asked for). Settings only one method reads
 /// (a site count, an RMSE) name that method alone; a lossless request, the lossless
@@ -516,7 +540,8 @@ const PROBE_BANDS: usize = 8;
 /// estimates from the probe and its first half ([`contenders`]) are closer, and every
 /// corpus cell the grid wins has an estimated ratio of at most 1.000.
 const PROBE_GRID_MARGIN: f64 = 1.03;
-/// The grid is encoded in full only when its probe estimate is within this factor of the
+/// On rasters over [`EXHAUSTIVE_MAX_SAMPLES`], the grid is encoded in full only when its
+/// probe estimate is within this factor of the
 /// residual layer's actual payload. Measured (10 corpus rasters × 1 m, 0.1 %, 1 %, 3 %):
 /// where the grid won, its estimate was 0.90–1.11× the residual layer's payload (Aleutians
 /// at 1 m 1.110, the Delft DSM at 3 % 1.084); where the residual layer won, 1.02–5.5×.
