@@ -5,6 +5,7 @@
 //! on the finest levels by a least-squares 2-D stencil the encoder fits and sends.
 
 use super::coder::{BinCoder, Ctx, LEVELS, round_div};
+use super::fast::passes::anchor_med;
 use super::ls::{self, Normal};
 use super::plane::{FIXED, Plane, SKIPPED, State, quarter_bins};
 use crate::error::Result;
@@ -161,17 +162,7 @@ pub fn run<C: BinCoder>(
             };
             let nb = [g(-1, 0), g(0, -1), g(-1, -1), g(1, -1)];
             let [left, top, tl, tr] = nb.map(|j| j.map(|j| st.rec[j]));
-            let a = left.or(top).unwrap_or(mid);
-            let b = top.unwrap_or(a);
-            let c = tl.unwrap_or(a);
-            let d = tr.unwrap_or(b);
-            let pred = if c >= a.max(b) {
-                a.min(b)
-            } else if c <= a.min(b) {
-                a.max(b)
-            } else {
-                a + b - c
-            };
+            let (pred, t) = anchor_med(left, top, tl, tr, mid);
             let mut er = 0i64;
             let mut cnt = 0i64;
             let mut sg = 0i32;
@@ -180,7 +171,7 @@ pub fn run<C: BinCoder>(
                 cnt += 1;
                 sg += st.sign[j] as i32;
             }
-            let act = (a - c).abs() + (b - c).abs() + (d - b).abs() + er;
+            let act = t + er;
             let err = er / cnt.max(1);
             st.code_with(
                 p,

@@ -172,7 +172,7 @@ pub(super) fn passes(cfg: Config, bin: i64) -> Vec<Pass> {
 /// above-left, else a; d = above-right, else b), p = min(a, b) when c ≥ max(a, b), max(a, b)
 /// when c ≤ min(a, b), else a + b − c; t = |a − c| + |b − c| + |d − b|.
 #[inline(always)]
-pub(super) fn anchor_med(left: Option<i64>, top: Option<i64>, tl: Option<i64>, tr: Option<i64>, mid: i64) -> (i64, i64) {
+pub(in crate::methods::residual) fn anchor_med(left: Option<i64>, top: Option<i64>, tl: Option<i64>, tr: Option<i64>, mid: i64) -> (i64, i64) {
     let a = left.or(top).unwrap_or(mid);
     let b = top.unwrap_or(a);
     let c = tl.unwrap_or(a);
