@@ -43,6 +43,26 @@ pub(crate) fn med(a: i64, b: i64, c: i64) -> i64 {
     }
 }
 
+/// [`med`] on a sparse grid (the residual layer's anchors), with its activity: from the
+/// points left, above, above-left and above-right (`None` outside; `mid` where there is
+/// neither left nor above), the missing ones substituted (a = left, else above, else mid;
+/// b = above, else a; c = above-left, else a; d = above-right, else b); returns
+/// (med(a, b, c), |a − c| + |b − c| + |d − b|).
+#[inline(always)]
+pub(crate) fn anchor_med(
+    left: Option<i64>,
+    top: Option<i64>,
+    tl: Option<i64>,
+    tr: Option<i64>,
+    mid: i64,
+) -> (i64, i64) {
+    let a = left.or(top).unwrap_or(mid);
+    let b = top.unwrap_or(a);
+    let c = tl.unwrap_or(a);
+    let d = tr.unwrap_or(b);
+    (med(a, b, c), (a - c).abs() + (b - c).abs() + (d - b).abs())
+}
+
 #[inline]
 pub(crate) fn predict(codes: &[i64], w: usize, i: usize) -> i64 {
     let (x, y) = (i % w, i / w);

@@ -5,7 +5,7 @@
 //! on the finest levels by a least-squares 2-D stencil the encoder fits and sends.
 
 use super::coder::{BinCoder, Ctx, LEVELS, round_div};
-use super::fast::passes::anchor_med;
+use crate::predict::med::anchor_med;
 use super::ls::{self, Normal};
 use super::plane::{FIXED, Plane, SKIPPED, State, quarter_bins};
 use crate::error::Result;

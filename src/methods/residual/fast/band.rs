@@ -2,7 +2,8 @@
 //! the token, reconstruct; in place when a pass runs on one thread, into buffers of its
 //! own when its bands run side by side.
 
-use super::passes::{FINE, Kind, NCOARSE, NW, Pass, SymCoder, anchor_med, half_log};
+use crate::predict::med::anchor_med;
+use super::passes::{FINE, Kind, NCOARSE, NW, Pass, SymCoder, half_log};
 use super::super::coder::quantize;
 use super::super::interp::interp1;
 use super::super::plane::{CODED, FIXED, Plane};

@@ -12,7 +12,8 @@
 use super::super::coder::quantize;
 use super::super::interp::interp1;
 use super::super::plane::{CODED, FIXED};
-use super::passes::{FINE, Kind, NCOARSE, NW, Pass, anchor_med, half_log, token};
+use crate::predict::med::anchor_med;
+use super::passes::{FINE, Kind, NCOARSE, NW, Pass, half_log, token};
 use crate::entropy::rans::{self, BitReader, BitWriter, LanesDecoder};
 use crate::entropy::varint;
 use crate::error::{Error, Result};

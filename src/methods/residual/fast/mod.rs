@@ -23,7 +23,7 @@ mod band;
 mod clusters;
 mod fit;
 mod lanes;
-pub(super) mod passes;
+mod passes;
 
 use band::{Global, run_pass};
 use clusters::cluster;

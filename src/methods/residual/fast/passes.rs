@@ -166,27 +166,6 @@ pub(super) fn passes(cfg: Config, bin: i64) -> Vec<Pass> {
     v
 }
 
-/// An anchor's MED prediction and curvature from the anchors left, above, above-left and
-/// above-right (`None` outside; `mid` where there is neither left nor above): with the
-/// missing ones substituted (a = left, else above, else mid; b = above, else a; c =
-/// above-left, else a; d = above-right, else b), p = min(a, b) when c ≥ max(a, b), max(a, b)
-/// when c ≤ min(a, b), else a + b − c; t = |a − c| + |b − c| + |d − b|.
-#[inline(always)]
-pub(in crate::methods::residual) fn anchor_med(left: Option<i64>, top: Option<i64>, tl: Option<i64>, tr: Option<i64>, mid: i64) -> (i64, i64) {
-    let a = left.or(top).unwrap_or(mid);
-    let b = top.unwrap_or(a);
-    let c = tl.unwrap_or(a);
-    let d = tr.unwrap_or(b);
-    let p = if c >= a.max(b) {
-        a.min(b)
-    } else if c <= a.min(b) {
-        a.max(b)
-    } else {
-        a + b - c
-    };
-    (p, (a - c).abs() + (b - c).abs() + (d - b).abs())
-}
-
 /// Half-octave logarithm: 2·⌊log2 v⌋ plus the bit below the leading one (v ≥ 1).
 #[inline(always)]
 pub(super) fn half_log(v: u64) -> u32 {
