@@ -374,9 +374,9 @@ fn encode_best(
     // but the residual layer) must save more than LEVELS_FIRST_MARGIN: an overview reads
     // its whole block.
     let weight = |c: &Candidate| {
-        let flat = opts.levels_first && c.method.name() != Method::RESIDUAL.name();
+        let no_levels = opts.levels_first && c.method.name() != Method::RESIDUAL.name();
         c.enc.payload.len() as f64
-            / if flat {
+            / if no_levels {
                 1.0 - crate::methods::LEVELS_FIRST_MARGIN
             } else {
                 1.0

@@ -333,27 +333,18 @@ impl State<'_> {
     }
 }
 
+/// The first site count at which [`select_capped`] asks whether to give up.
+pub const GIVE_UP_FROM: usize = 512;
+
 /// Run the greedy refinement. `progress` gets the fraction done (by error or site budget).
 pub fn select(s: &Samples, p: &SelectParams, progress: &mut dyn FnMut(f64)) -> Result<Selection> {
-    Ok(select_inner(s, p, progress, &mut |_| false)?.expect("never gives up"))
+    Ok(select_capped(s, p, progress, &mut |_| false)?.expect("never gives up"))
 }
 
 /// [`select`], asking `give_up` whether to stop at [`GIVE_UP_FROM`] sites and then each
 /// time the count has grown by a quarter: then it returns `Ok(None)` (`best` stops the
 /// sites encoder once its payload passes the smallest candidate's).
 pub fn select_capped(
-    s: &Samples,
-    p: &SelectParams,
-    progress: &mut dyn FnMut(f64),
-    give_up: &mut dyn FnMut(&Selection) -> bool,
-) -> Result<Option<Selection>> {
-    select_inner(s, p, progress, give_up)
-}
-
-/// The first site count at which [`select_capped`] asks whether to give up.
-pub const GIVE_UP_FROM: usize = 512;
-
-fn select_inner(
     s: &Samples,
     p: &SelectParams,
     progress: &mut dyn FnMut(f64),
