@@ -87,13 +87,13 @@ def variants(data):
             for tw, th in ((16, 16), (w, 16), (16, h)):
                 out.append((f"tile{tw}x{th}", edited(data, [(t, "<I", tw), (t + 4, "<I", th)])))
             out.append(("margin", edited(data, [(t + 8, "<I", 1 << 30)])))
-    elif version == 4:
+    elif version in (4, 5):
         # The tile index follows the header: header fields edited with the header's CRC
-        # recomputed (sizes, tile sides, margin, index length, which end the header body),
-        # and index entries edited with the index's CRC recomputed (a chunk end of 4 GiB, a
-        # huge valid count, the most chunks).
+        # recomputed (sizes, tile sides, margin, index length and, in version 5, the split,
+        # which end the header body), and index entries edited with the index's CRC
+        # recomputed (a chunk end of 4 GiB, a huge valid count, the most chunks).
         w, h = struct.unpack_from("<II", data, 16)
-        t = 16 + hlen - 16
+        t = 16 + hlen - (20 if version == 5 else 16)
         ilen = struct.unpack_from("<I", data, t + 12)[0]
 
         def header_only(f):
@@ -121,6 +121,9 @@ def variants(data):
         out.append(("chunk_end_max", entry(40, "<I", 0xFFFFFFFF)))
         out.append(("valid_max", entry(8, "<Q", 1 << 62)))
         out.append(("chunks13", entry(4, "<B", 13)))
+        if version == 5:
+            for v in (0, 12, 13, 0xFFFFFFFF):
+                out.append((f"split{v}", header_only([(t + 16, "<I", v)])))
     elif version == 3:
         points, positions = struct.unpack_from("<QQ", data, 16)
         big = 1 << 27

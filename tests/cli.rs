@@ -236,7 +236,7 @@ fn tiled_encode_decode_info_and_a_corrupt_tile() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let info = json(&vtz(["info", &out, "--json"]));
-    assert_eq!(info["version"], 4);
+    assert_eq!(info["version"], 5);
     let t = &info["tiles"];
     let n = t["cols"].as_u64().unwrap() * t["rows"].as_u64().unwrap();
     assert!(n >= 9, "tiles of at most 128 over a raster of ~400²");
@@ -257,7 +257,13 @@ fn tiled_encode_decode_info_and_a_corrupt_tile() {
     assert!(o.status.success(), "{}", stderr(&o));
     // Corrupt the middle of tile 5's block.
     let t5 = &info["tiles"]["index"][5];
-    let at = (t5["offset"].as_u64().unwrap() + t5["bytes"].as_u64().unwrap() / 2) as usize;
+    // (Version 5: the block is its head at "offset", then its tail at "tail_offset".)
+    let (p, head) = (t5["bytes"].as_u64().unwrap() / 2, t5["head_bytes"].as_u64().unwrap());
+    let at = if p < head {
+        t5["offset"].as_u64().unwrap() + p
+    } else {
+        t5["tail_offset"].as_u64().unwrap() + p - head
+    } as usize;
     let mut bytes = std::fs::read(&out).unwrap();
     bytes[at] ^= 0x5a;
     let bad = tmp(&d, "bad.vtz");

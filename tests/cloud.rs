@@ -1,7 +1,8 @@
-//! Version 4, tiled files laid out for range reads (spec/FORMAT.md, "Version 4"): what a
-//! reader fetches (counted through a `RangeSource`), progressive tiles (an overview reads a
-//! prefix of each block and decodes exactly what the whole block gives), the index's and the
-//! chunks' checks.
+//! Version 5 (and 4), tiled files laid out for range reads (spec/FORMAT.md, "Version 4",
+//! "Version 5"): what a reader fetches (counted through a `RangeSource`), progressive tiles
+//! (an overview reads a prefix of each block and decodes exactly what the whole block
+//! gives; at the file's split and coarser, one range of the heads), the index's and the
+//! chunks' checks. The version-4 files here are the version-5 files rewritten.
 
 use std::io::Cursor;
 use vtz::source::HEAD_BYTES;
@@ -62,23 +63,78 @@ fn progressive_tiles(bytes: &[u8]) -> usize {
     k
 }
 
+/// Byte offset of a version-5 file's index length (in the header's tile fields: tile
+/// width, height, margin, index length, split).
+fn index_len_at(bytes: &[u8]) -> usize {
+    let h = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    16 + h - 8
+}
+
 #[test]
-fn a_tiled_encode_writes_version_4_with_the_index_first() {
+fn a_tiled_encode_writes_version_5_index_first_then_heads_then_tails() {
     let bytes = big_file(None);
-    assert_eq!(u16::from_le_bytes([bytes[8], bytes[9]]), 4);
+    assert_eq!(u16::from_le_bytes([bytes[8], bytes[9]]), 5);
     let info = vtz::info(&bytes, Default::default()).unwrap();
-    assert_eq!(info.version, 4);
+    assert_eq!(info.version, 5);
     let t = info.tiles.unwrap();
     assert_eq!(t.tiles.len(), 64);
     assert!(bytes.len() as u64 > 2 * HEAD_BYTES, "{} bytes", bytes.len());
-    // The index and global sections end before the first tile, inside the first read.
+    // A 1024² raster: split 1 (overview 1 is 512², under 1024).
+    let h = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    assert_eq!(u32::from_le_bytes(bytes[12 + h..16 + h].try_into().unwrap()), 1);
+    // The index and global sections end before the first head, inside the first read.
     assert!(t.tiles[0].offset < HEAD_BYTES, "{}", t.tiles[0].offset);
-    // Blocks back to back, the last ending the file.
+    // Heads back to back, then tails back to back, the last ending the file; a tile's head
+    // is the prefix of its block overview 1 reads, a few % of it.
     for w in t.tiles.windows(2) {
-        assert_eq!(w[0].offset + w[0].bytes, w[1].offset);
+        assert_eq!(w[0].offset + w[0].head_bytes, w[1].offset);
+        assert_eq!(w[0].tail_offset + w[0].bytes - w[0].head_bytes, w[1].tail_offset);
     }
     let last = t.tiles.last().unwrap();
-    assert_eq!(last.offset + last.bytes, bytes.len() as u64);
+    assert_eq!(last.offset + last.head_bytes, t.tiles[0].tail_offset);
+    assert_eq!(
+        last.tail_offset + last.bytes - last.head_bytes,
+        bytes.len() as u64
+    );
+    // At 1 m the finest level (3/4 of the samples) is about half the bytes.
+    let heads: u64 = t.tiles.iter().map(|e| e.head_bytes).sum();
+    assert!(
+        heads > 0 && heads < bytes.len() as u64 * 3 / 4,
+        "heads {heads} of {}",
+        bytes.len()
+    );
+}
+
+#[test]
+fn an_overview_at_the_split_or_coarser_is_one_range_of_the_heads() {
+    for effort in [None, Some(1)] {
+        let bytes = big_file(effort);
+        let src = Counting::over_bytes(&bytes);
+        let mut d = Decoder::open(src.clone()).unwrap();
+        let heads: u64 = d
+            .info()
+            .tiles
+            .as_ref()
+            .unwrap()
+            .tiles
+            .iter()
+            .map(|e| e.head_bytes)
+            .sum();
+        for k in 1..=3 {
+            src.reset();
+            d.options(common::decode_opts(|o| o.overview = Some(k)));
+            let r = d.decode().unwrap();
+            let (n, got) = src.requests();
+            assert_eq!(n, 1, "effort {effort:?}, overview {k}: {n} requests");
+            assert!(got <= heads, "overview {k}: {got} bytes, heads {heads}");
+            // The same samples as from whole blocks.
+            let whole = overview(&one_chunk_each(&bytes), k);
+            assert_eq!(
+                r.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                whole.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+            );
+        }
+    }
 }
 
 #[test]
@@ -140,8 +196,12 @@ fn opening_is_one_read_and_a_window_reads_only_its_rows_of_tiles() {
                 r.len()
             };
             let need: u64 = touched.iter().map(|e| e.bytes).sum();
-            assert!(n <= rows, "{win:?}: {n} requests for {rows} rows of tiles");
-            assert!(n < 3 || rows > 2, "{win:?}: {} requests in all", 1 + n);
+            // A range of heads (one for every row) and the tails of each row of tiles.
+            assert!(
+                n <= rows + 1,
+                "{win:?}: {n} requests for {rows} rows of tiles"
+            );
+            assert!(n <= 2 || rows > 1, "{win:?}: {} requests in all", 1 + n);
             assert!(
                 got as f64 <= 1.5 * need as f64,
                 "{win:?}: fetched {got} bytes for tiles of {need}"
@@ -150,14 +210,20 @@ fn opening_is_one_read_and_a_window_reads_only_its_rows_of_tiles() {
     }
 }
 
-/// The file with every tile's chunk table rewritten to one chunk: a decoder then reads whole
-/// blocks for overviews too.
+/// The version-5 file rewritten as a version-4 file whose tiles are one chunk each (blocks
+/// back to back, each its head and tail): a decoder then reads whole blocks for overviews.
 fn one_chunk_each(bytes: &[u8]) -> Vec<u8> {
     let h = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
     let idx_at = 20 + h;
-    let idx_len = u32::from_le_bytes(bytes[h + 12..h + 16].try_into().unwrap()) as usize;
+    let idx_len = u32::from_le_bytes(bytes[h + 8..h + 12].try_into().unwrap()) as usize;
     let info = vtz::info(bytes, Default::default()).unwrap();
     let t = info.tiles.unwrap();
+    let block = |e: &vtz::TileInfo| {
+        let mut b = bytes[e.offset as usize..(e.offset + e.head_bytes) as usize].to_vec();
+        let rest = e.bytes - e.head_bytes;
+        b.extend_from_slice(&bytes[e.tail_offset as usize..(e.tail_offset + rest) as usize]);
+        b
+    };
     let mut idx = Vec::new();
     idx.extend_from_slice(&bytes[idx_at..idx_at + 4]);
     let mut at = idx_at + 4;
@@ -167,21 +233,25 @@ fn one_chunk_each(bytes: &[u8]) -> Vec<u8> {
         fixed[4] = 1;
         idx.extend_from_slice(&fixed);
         idx.extend_from_slice(&(e.bytes as u32).to_le_bytes());
-        let block = &bytes[e.offset as usize..(e.offset + e.bytes) as usize];
-        idx.extend_from_slice(&crc32(block).to_le_bytes());
+        idx.extend_from_slice(&crc32(&block(e)).to_le_bytes());
         at += 40 + 8 * c;
     }
     assert_eq!(at + 4, idx_at + idx_len, "walked the whole index");
     let crc = crc32(&idx);
     idx.extend_from_slice(&crc.to_le_bytes());
-    let mut out = bytes[..idx_at].to_vec();
-    // The header says the new index length.
+    // Version 4's header: the same body without the split, the new index length.
+    let mut out = bytes[..16 + h - 4].to_vec();
+    out[8..10].copy_from_slice(&4u16.to_le_bytes());
+    out[12..16].copy_from_slice(&(h as u32 - 4).to_le_bytes());
     let new_len = idx.len() as u32;
-    out[h + 12..h + 16].copy_from_slice(&new_len.to_le_bytes());
-    let hcrc = crc32(&out[..16 + h]);
-    out[16 + h..20 + h].copy_from_slice(&hcrc.to_le_bytes());
+    out[h + 8..h + 12].copy_from_slice(&new_len.to_le_bytes());
+    let hcrc = crc32(&out);
+    out.extend_from_slice(&hcrc.to_le_bytes());
     out.extend_from_slice(&idx);
-    out.extend_from_slice(&bytes[idx_at + idx_len..]);
+    out.extend_from_slice(&bytes[idx_at + idx_len..t.tiles[0].offset as usize]);
+    for e in &t.tiles {
+        out.extend_from_slice(&block(e));
+    }
     out
 }
 
@@ -215,7 +285,7 @@ fn an_overview_reads_a_prefix_of_each_block_and_decodes_what_the_whole_block_giv
             progressive_tiles(&bytes)
         );
         let whole = one_chunk_each(&bytes);
-        assert_ne!(whole, bytes);
+        assert_eq!(u16::from_le_bytes([whole[8], whole[9]]), 4);
         // The rewritten file is a valid version-4 file that decodes the same.
         assert_eq!(
             vtz::decode(&whole).unwrap().data,
@@ -259,8 +329,9 @@ fn a_corrupt_chunk_fails_naming_the_tile_and_a_coarser_overview_does_not_read_it
     let k = 9;
     let e = &t.tiles[k];
     let mut b = bytes.clone();
-    // The block's last byte: in its last chunk, which only a full decode reads.
-    b[(e.offset + e.bytes - 1) as usize] ^= 0x40;
+    // The block's last byte (in its tail): in its last chunk, which only a full decode reads.
+    assert!(e.bytes > e.head_bytes);
+    b[(e.tail_offset + e.bytes - e.head_bytes - 1) as usize] ^= 0x40;
     let err = vtz::decode(&b).unwrap_err();
     assert!(matches!(err, Error::Corrupt { .. }), "{err}");
     let m = err.to_string();
@@ -269,10 +340,19 @@ fn a_corrupt_chunk_fails_naming_the_tile_and_a_coarser_overview_does_not_read_it
 }
 
 #[test]
-fn every_proper_prefix_of_a_version_4_file_is_rejected() {
+fn every_proper_prefix_of_a_version_5_and_4_file_is_rejected() {
     let src = terrain(Kind::Hill, 80, 70, 5, true, vtz::SampleType::I16);
     let bytes = vtz::encode(&src, &opts(1.0, 32, None)).unwrap();
-    assert_eq!(u16::from_le_bytes([bytes[8], bytes[9]]), 4);
+    assert_eq!(u16::from_le_bytes([bytes[8], bytes[9]]), 5);
+    let v4 = one_chunk_each(&bytes);
+    assert_eq!(vtz::decode(&v4).unwrap().data, vtz::decode(&bytes).unwrap().data);
+    for n in 0..v4.len() {
+        assert!(
+            Decoder::new(Cursor::new(v4[..n].to_vec())).is_err(),
+            "version 4: prefix of {n} of {} bytes opened",
+            v4.len()
+        );
+    }
     for n in 0..bytes.len() {
         assert!(
             Decoder::new(Cursor::new(bytes[..n].to_vec())).is_err(),
@@ -292,7 +372,8 @@ fn patch_entry(bytes: &[u8], k: usize, at: usize, value: &[u8]) -> Vec<u8> {
     let mut b = bytes.to_vec();
     let h = u32::from_le_bytes(b[12..16].try_into().unwrap()) as usize;
     let idx_at = 20 + h;
-    let idx_len = u32::from_le_bytes(b[h + 12..h + 16].try_into().unwrap()) as usize;
+    let il = index_len_at(&b);
+    let idx_len = u32::from_le_bytes(b[il..il + 4].try_into().unwrap()) as usize;
     let mut e = idx_at + 4;
     for _ in 0..k {
         e += 40 + 8 * b[e + 4] as usize;
@@ -312,8 +393,23 @@ fn corrupt_msg(bytes: &[u8]) -> String {
     }
 }
 
+/// A split the file was not written with: the heads and tails are cut elsewhere than the
+/// reader thinks, so a chunk fails its checksum.
 #[test]
-fn corrupt_version_4_indexes_are_rejected_naming_the_tile() {
+fn a_wrong_split_fails_a_chunk_checksum() {
+    let bytes = big_file(Some(1));
+    let h = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let il = index_len_at(&bytes);
+    let mut b = bytes.clone();
+    b[il + 4..il + 8].copy_from_slice(&3u32.to_le_bytes());
+    let hcrc = crc32(&b[..16 + h]);
+    b[16 + h..20 + h].copy_from_slice(&hcrc.to_le_bytes());
+    let m = corrupt_msg(&b);
+    assert!(m.contains("checksum"), "{m}");
+}
+
+#[test]
+fn corrupt_version_5_indexes_are_rejected_naming_the_tile() {
     let src = terrain(Kind::Hill, 150, 100, 5, true, vtz::SampleType::I16);
     let bytes = vtz::encode(&src, &opts(1.0, 40, None)).unwrap();
     let t = vtz::info(&bytes, Default::default())
@@ -354,12 +450,16 @@ fn corrupt_version_4_indexes_are_rejected_naming_the_tile() {
     let mut b = bytes.clone();
     b[20 + h + 10] ^= 1;
     assert!(corrupt_msg(&b).contains("tile index checksum"));
-    // An index length the tiles cannot fill.
-    let mut b = bytes.clone();
-    b[h + 12..h + 16].copy_from_slice(&7u32.to_le_bytes());
-    let hcrc = crc32(&b[..16 + h]);
-    b[16 + h..20 + h].copy_from_slice(&hcrc.to_le_bytes());
-    assert!(corrupt_msg(&b).contains("index"));
+    // An index length the tiles cannot fill; a split out of range (0, 13).
+    let il = index_len_at(&bytes);
+    for (at, v, what) in [(il, 7u32, "index"), (il + 4, 0, "split"), (il + 4, 13, "split")] {
+        let mut b = bytes.clone();
+        b[at..at + 4].copy_from_slice(&v.to_le_bytes());
+        let hcrc = crc32(&b[..16 + h]);
+        b[16 + h..20 + h].copy_from_slice(&hcrc.to_le_bytes());
+        let m = corrupt_msg(&b);
+        assert!(m.contains(what), "{what} {v}: {m}");
+    }
     let limits = vtz::Limits {
         max_section_bytes: 100,
         ..Default::default()
@@ -370,7 +470,7 @@ fn corrupt_version_4_indexes_are_rejected_naming_the_tile() {
     assert!(matches!(e, Error::LimitExceeded { .. }), "{e}");
 }
 
-/// In a version-4 file the residual layer keeps the weighted scan (no coarse levels: an
+/// In a version-5 (and 4) file the residual layer keeps the weighted scan (no coarse levels: an
 /// overview reads its whole block) only where it saves more than 3 % over interpolation.
 /// Kauai at 1 m in 256² tiles: the weighted scan is ~2 % smaller there, and before this rule
 /// it coded every residual tile (none progressive); now they take the levels-first coding.

@@ -580,12 +580,13 @@ fn a_tile_range_off_the_sample_types_lattice_is_corrupt() {
     o.tile = Some(128);
     let bytes = vtz::encode(&r, &o).unwrap();
     assert!(vtz::decode(&bytes).is_ok());
-    // Version 4: the index follows the header (its length in the header's last 4 bytes):
-    // the tile count N, N entries (40 bytes, min at +16, then 8 per chunk), a CRC.
-    assert_eq!(u16::from_le_bytes([bytes[8], bytes[9]]), 4);
+    // Version 5: the index follows the header (its length in the header's last 8 bytes,
+    // before the split): the tile count N, N entries (40 bytes, min at +16, then 8 per
+    // chunk), a CRC.
+    assert_eq!(u16::from_le_bytes([bytes[8], bytes[9]]), 5);
     let h = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
     let start = 20 + h;
-    let len = u32::from_le_bytes(bytes[h + 12..h + 16].try_into().unwrap()) as usize;
+    let len = u32::from_le_bytes(bytes[h + 8..h + 12].try_into().unwrap()) as usize;
     let n = u32::from_le_bytes(bytes[start..start + 4].try_into().unwrap()) as usize;
     assert!(n >= 4, "{n} tiles");
     let mut bad = bytes.clone();

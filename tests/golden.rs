@@ -562,16 +562,19 @@ fn the_tiled_golden_file_decodes_to_its_expected_samples() {
         .unwrap();
 }
 
-/// The version-4 golden files: the version-2 file's window, tiles, bound and sections, laid
-/// out for range reads (index first, progressive chunks), coded by `best` (default effort:
-/// the range-coded residual codings) and by the fast coding (effort 1). Each overview of
-/// them is pinned too: it reads a prefix of each block.
+/// The version-4 and version-5 golden files: the version-2 file's window, tiles, bound and
+/// sections, laid out for range reads (index first, progressive chunks; version 5 with
+/// every tile's head before the tails), coded by `best` (version 4: the range-coded residual
+/// codings, then the default; version 5: the default, the lane coding), by the fast coding
+/// (effort 2) and by the lane coding (effort 1). Each overview of them is pinned too: it
+/// reads a prefix of each block.
 #[test]
-fn the_version_4_golden_files_decode_to_their_expected_samples() {
-    for (name, effort) in [
-        ("v4_kauai_tiles", None),
-        ("v4_kauai_tiles_fast", Some(2u8)),
-        ("v4_kauai_tiles_lanes", Some(1u8)),
+fn the_version_4_and_5_golden_files_decode_to_their_expected_samples() {
+    for (name, effort, version) in [
+        ("v4_kauai_tiles", None, 4u16),
+        ("v4_kauai_tiles_fast", Some(2u8), 4),
+        ("v4_kauai_tiles_lanes", Some(1u8), 4),
+        ("v5_kauai_tiles", None, 5),
     ] {
         // Both with the residual layer (interpolation, range-coded or fast), whose tiles
         // are progressive: several chunks each.
@@ -588,7 +591,7 @@ fn the_version_4_golden_files_decode_to_their_expected_samples() {
             let mut opts = encode_opts(&[Method::RESIDUAL], Some(ErrorBound::Abs(2.0)));
             opts.tile = Some(32);
             opts.effort = effort;
-            opts.metadata = Some("{\"golden\":\"v4\"}".into());
+            opts.metadata = Some(format!("{{\"golden\":\"v{version}\"}}"));
             let bytes = vtz::encode(&src, &opts).unwrap();
             std::fs::write(&vtz_path, &bytes).unwrap();
             std::fs::write(&exp_path, as_f32_bytes(&vtz::decode(&bytes).unwrap())).unwrap();
@@ -601,11 +604,11 @@ fn the_version_4_golden_files_decode_to_their_expected_samples() {
         let bytes = std::fs::read(&vtz_path).unwrap();
         assert_eq!(
             u16::from_le_bytes([bytes[8], bytes[9]]),
-            4,
-            "{name}: a version-4 file"
+            version,
+            "{name}: a version-{version} file"
         );
         let info = vtz::info(&bytes, Default::default()).unwrap();
-        assert_eq!(info.version, 4);
+        assert_eq!(info.version, version);
         let t = info.tiles.as_ref().expect("tiles");
         assert_eq!(
             (t.cols, t.rows, t.tile_width, t.tile_height),

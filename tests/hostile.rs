@@ -121,12 +121,12 @@ fn variants(data: &[u8]) -> Vec<(String, Vec<u8>)> {
                 out.push((name.into(), edited(data, &f, &[])));
             }
         }
-        4 => {
-            // Version 4: the tile index follows the header, so only the header's fields
-            // are edited (its checksum recomputed): sizes, tile sides, the margin and the
-            // index length, which end the header body.
+        4 | 5 => {
+            // Versions 4 and 5: the tile index follows the header, so only the header's
+            // fields are edited (its checksum recomputed): sizes, tile sides, the margin, the
+            // index length and (version 5) the split, which end the header body.
             let (w, h) = (u32_at(data, 16), u32_at(data, 20));
-            let t = 16 + hlen - 16;
+            let t = 16 + hlen - if version == 5 { 20 } else { 16 };
             let header_only = |f: &[(usize, Vec<u8>)]| {
                 let mut b = data.to_vec();
                 for (at, v) in f {
@@ -161,6 +161,11 @@ fn variants(data: &[u8]) -> Vec<(String, Vec<u8>)> {
                 ("index_plus1", u32_at(data, t + 12) + 1),
             ] {
                 out.push((name.into(), header_only(&[(t + 12, le32(v))])));
+            }
+            if version == 5 {
+                for v in [0, 12, 13, u32::MAX] {
+                    out.push((format!("split{v}"), header_only(&[(t + 16, le32(v))])));
+                }
             }
             // Index entries edited, the index's CRC recomputed (entry 0: a chunk end of
             // 4 GiB, a huge valid count, the most chunks), as fuzz/hostile.py makes them.

@@ -1,4 +1,4 @@
-//! Tiled files (container versions 2 and 4; tests/cloud.rs has version 4's own): the bound on every sample, bytes independent of the
+//! Tiled files (container versions 2, 4 and 5; tests/cloud.rs has versions 4's and 5's own): the bound on every sample, bytes independent of the
 //! thread count, windows equal to crops of the full decode, reads limited to the tiles a
 //! window touches, continuity of resampled surfaces across tile borders, and corrupt
 //! indexes and tiles rejected with clear errors.
@@ -392,15 +392,15 @@ fn metadata_goes_to_the_global_sections_and_comes_back() {
     assert_eq!(bits(&d), bits(&src), "lossless");
 }
 
-/// The global directory holds metadata and GDAL metadata only (FORMAT.md, versions 2 and
-/// 4): a flat section there (or a mask, or a representation) is corrupt, for decode and
-/// verify. Version 4's comes after the tile index.
+/// The global directory holds metadata and GDAL metadata only (FORMAT.md, versions 2, 4
+/// and 5): a flat section there (or a mask, or a representation) is corrupt, for decode and
+/// verify. Version 5's comes after the tile index.
 #[test]
 fn a_global_directory_holds_only_metadata_sections() {
     let (bytes, _) = tiled_file();
-    assert_eq!(u16::from_le_bytes([bytes[8], bytes[9]]), 4);
+    assert_eq!(u16::from_le_bytes([bytes[8], bytes[9]]), 5);
     let hlen = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
-    let index_len = u32::from_le_bytes(bytes[hlen + 12..hlen + 16].try_into().unwrap()) as usize;
+    let index_len = u32::from_le_bytes(bytes[hlen + 8..hlen + 12].try_into().unwrap()) as usize;
     let dir = 20 + hlen + index_len;
     assert_eq!(
         u32::from_le_bytes(bytes[dir..dir + 4].try_into().unwrap()),

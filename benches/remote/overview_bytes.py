@@ -1,5 +1,5 @@
-"""Bytes an overview read of a version-4 .vtz fetches, from its tile index alone
-(spec/FORMAT.md, "Version 4"): overview K of a tile with c chunks reads chunks 0 ..= max(0,
+"""Bytes an overview read of a version-4 or -5 .vtz fetches, from its tile index alone
+(spec/FORMAT.md, "Version 4", "Version 5"): overview K of a tile with c chunks reads chunks 0 ..= max(0,
 c − 1 − K), i.e. the prefix that ends at that chunk's end; a tile of one chunk (a method
 without coarse levels) is read whole. Prints, per file, the tiles by chunk count and
 method, and the share of the file overviews 3, 4 and 5 read (the 20 000² mosaic's 1024²
@@ -14,10 +14,12 @@ import sys
 
 for f in sys.argv[1:]:
     with open(f, "rb") as fh:
-        hlen = struct.unpack_from("<I", fh.read(16), 12)[0]
+        fixed = fh.read(16)
+        version, hlen = struct.unpack_from("<H", fixed, 8)[0], struct.unpack_from("<I", fixed, 12)[0]
         body = fh.read(hlen)  # the header body: width, height, …, then the tile fields
         w, h = struct.unpack_from("<II", body, 0)
-        tw, th, _, ilen = struct.unpack_from("<IIII", body, hlen - 16)
+        fields = 20 if version == 5 else 16  # version 5 adds the split
+        tw, th, _, ilen = struct.unpack_from("<IIII", body, hlen - fields)
         fh.seek(20 + hlen)
         idx = fh.read(ilen)
     tiles = struct.unpack_from("<I", idx, 0)[0]

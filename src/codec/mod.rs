@@ -21,7 +21,7 @@ pub use surface::Surface;
 pub use tiles::{DEFAULT_TILE, tile_count};
 pub use verify::{Verified, verify_points};
 
-use crate::container::tiled::{TiledReader, VERSION_CLOUD, VERSION_TILED, peek_version};
+use crate::container::tiled::{TiledReader, VERSION_CLOUD, VERSION_HEADS, VERSION_TILED, peek_version};
 use crate::container::{ContainerReader, Limits, SF_REQUIRED};
 use crate::error::{Error, Result};
 use crate::formats::{self, Format, ReadOptions, WriteOptions};
@@ -326,10 +326,15 @@ pub struct TileInfo {
     pub window: Window,
     /// The samples it codes: the core and its margins.
     pub coded: Window,
-    /// Byte offset of its block.
+    /// Byte offset of its block (version 5: of the block's head).
     pub offset: u64,
     /// Bytes of its block.
     pub bytes: u64,
+    /// Bytes of the block at `offset`: in version 5 its head (the chunks of overviews at the
+    /// file's split and coarser, stored with every tile's head), else `bytes`.
+    pub head_bytes: u64,
+    /// Where the rest of the block lies (version 5's tail; `offset + bytes` otherwise).
+    pub tail_offset: u64,
     /// The method of its primary section, by the name `--method` takes (`sibson` for a
     /// sites section), or `unknown-N` for a section type this build does not know.
     pub method: String,
@@ -438,7 +443,7 @@ impl Decoder {
 
     /// Open a file from any [`RangeSource`] (a file, memory, an object over HTTP or on S3)
     /// with the default [`Limits`]: one read of its first
-    /// [`HEAD_BYTES`](crate::source::HEAD_BYTES) (a version-4 file's header, tile index and
+    /// [`HEAD_BYTES`](crate::source::HEAD_BYTES) (a version-4 or -5 file's header, tile index and
     /// global sections), then only the ranges each decode needs.
     pub fn open(src: Arc<dyn RangeSource>) -> Result<Decoder> {
         Decoder::open_with_limits(src, Limits::default())
@@ -455,7 +460,7 @@ impl Decoder {
                  vtz::decode_points (the CLI decodes either)",
             ));
         }
-        let tiled = version == VERSION_TILED || version == VERSION_CLOUD;
+        let tiled = [VERSION_TILED, VERSION_CLOUD, VERSION_HEADS].contains(&version);
         let rd = if tiled {
             Opened::Tiled(tiles::open(reader, limits)?)
         } else {
@@ -503,6 +508,8 @@ impl Decoder {
                             coded: g.ext(k),
                             offset: t.offset,
                             bytes: t.length,
+                            head_bytes: t.head,
+                            tail_offset: t.tail_offset,
                             method: methods::by_section(t.kind).map_or_else(
                                 || format!("unknown-{}", t.kind.code()),
                                 |m| m.name().to_string(),

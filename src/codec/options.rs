@@ -28,7 +28,7 @@ pub struct EncodeOptions {
     /// Free-form JSON stored in a metadata section (e.g. provenance).
     pub metadata: Option<String>,
     /// Tile side in samples: a raster larger than this in either direction is cut into
-    /// tiles that encode and decode independently (container version 4). `None` = tiles of
+    /// tiles that encode and decode independently (container version 5). `None` = tiles of
     /// [`DEFAULT_TILE`](crate::DEFAULT_TILE) for rasters of more than 4096² samples
     /// (whatever their shape), else untiled; `Some(0)` = never tile (version 1).
     pub tile: Option<u32>,

@@ -637,6 +637,10 @@ fn blend(
 /// holds an overview sample decodes at its own 2^k lattice (a row of tiles at a time, on
 /// every thread), and the sample takes the tile's value at the lattice point nearest it
 /// (ties to the lower; within the tile). Gives back the tiles skipped as corrupt.
+/// Bytes of tile blocks an overview decode reads at once (compressed: a few % of the
+/// samples' memory).
+const OVERVIEW_READ_BYTES: u64 = 64 << 20;
+
 pub(crate) fn decode_overview(
     rd: &mut TiledReader,
     opts: &DecodeOptions,
@@ -674,11 +678,34 @@ pub(crate) fn decode_overview(
     let mut skipped = Vec::new();
     let pool = pool(opts.threads)?;
     let done = AtomicUsize::new(0);
-    for (tr, rows) in &trows {
-        // One read for the row of tiles: in version 4 each block's first chunks, the
-        // levels this overview needs.
-        let ts: Vec<usize> = tcols.iter().map(|(tc, _)| tr * cols + tc).collect();
-        let got = rd.tile_blocks(&ts, k)?;
+    let row_tiles = |tr: usize| -> Vec<usize> { tcols.iter().map(|(tc, _)| tr * cols + tc).collect() };
+    // Blocks read for rows of tiles still to decode: one read for as many rows of tiles
+    // as fit in OVERVIEW_READ_BYTES (at least one row), of each block the prefix this
+    // overview needs (version 4 and 5: its first chunks; in version 5 at the file's split
+    // or coarser those lie together in the heads, and the whole overview is one range).
+    let mut fetched: std::collections::VecDeque<Vec<Result<Vec<u8>>>> = Default::default();
+    for (i, (tr, rows)) in trows.iter().enumerate() {
+        let ts = row_tiles(*tr);
+        if fetched.is_empty() {
+            let (mut all, mut sizes, mut bytes) = (Vec::new(), Vec::new(), 0u64);
+            for (tr2, _) in &trows[i..] {
+                let t2 = row_tiles(*tr2);
+                let b: u64 = t2.iter().map(|&t| rd.tiles()[t].prefix(k)).sum();
+                if !sizes.is_empty() && bytes + b > OVERVIEW_READ_BYTES {
+                    break;
+                }
+                bytes += b;
+                sizes.push(t2.len());
+                all.extend(t2);
+            }
+            let mut got = rd.tile_blocks(&all, k)?.into_iter();
+            for n in sizes {
+                fetched.push_back(got.by_ref().take(n).collect());
+            }
+        }
+        let got = fetched
+            .pop_front()
+            .ok_or_else(|| Error::invalid("overview: a row of tiles was not read"))?;
         let blocks: Vec<(usize, std::ops::Range<usize>, Result<Vec<u8>>)> = ts
             .iter()
             .zip(&tcols)

@@ -200,7 +200,7 @@ impl<R: Read + Seek> ContainerReader<R> {
         let version = u16::from_le_bytes([fixed[8], fixed[9]]);
         if version != VERSION {
             return Err(Error::unsupported(format!(
-                "vtz format version {version} (this decoder reads versions 1–4)"
+                "vtz format version {version} (this decoder reads versions 1–5)"
             )));
         }
         let req = u16::from_le_bytes([fixed[10], fixed[11]]);

@@ -1,5 +1,6 @@
-//! Version-2 framing: the tile grid, the global and tile blocks, and the tile index that a
-//! reader finds from the header (spec/FORMAT.md, "Version 2: tiled files").
+//! Tiled files' framing (versions 2, 4 and 5): the tile grid, the global and tile blocks,
+//! and the tile index that a reader finds from the header (spec/FORMAT.md, "Version 2:
+//! tiled files", "Version 4", "Version 5").
 
 use super::bytes::{ByteReader, PutLe};
 use super::{
@@ -17,12 +18,33 @@ pub const VERSION_TILED: u16 = 2;
 /// The container version of tiled files laid out for range reads: header, tile index and
 /// global sections first, progressive tile blocks (spec/FORMAT.md, "Version 4").
 pub const VERSION_CLOUD: u16 = 4;
+/// The container version of tiled files laid out for range reads with every tile's coarse
+/// chunks together before the rest (spec/FORMAT.md, "Version 5"): an overview at or coarser
+/// than the file's split is one range. What vtz writes for tiled rasters.
+pub const VERSION_HEADS: u16 = 5;
 /// Bytes of a version-4 index entry before its chunk table.
 pub const CLOUD_ENTRY_LEN: usize = 40;
 /// Most chunks a version-4 tile block has (the anchors and up to 12 levels).
 pub const MAX_CHUNKS: usize = 13;
 /// Bytes of the tile fields at the end of a version-4 header body.
 const CLOUD_FIELDS_LEN: usize = 16;
+/// Bytes of the tile fields at the end of a version-5 header body (version 4's and the split).
+const HEADS_FIELDS_LEN: usize = 20;
+/// The side (in samples) of the coarsest overview whose chunks a version-5 writer puts in the
+/// heads: the overview a screen-sized view of the whole raster reads (a 1024² request of
+/// the 20 000² mosaic reads overview 4, 1250²) and everything coarser is one range.
+pub const HEADS_OVERVIEW_SIDE: u64 = 1024;
+
+/// The split a version-5 writer uses for a `width × height` raster: the largest overview K
+/// (1 ..= MAX_CHUNKS − 1) whose longer side is still at least [`HEADS_OVERVIEW_SIDE`]
+/// (overview K has ⌈side / 2^K⌉ samples a side), else 1.
+pub fn heads_split(width: u32, height: u32) -> u32 {
+    let side = width.max(height) as u64;
+    (1..MAX_CHUNKS as u32)
+        .rev()
+        .find(|&k| side.div_ceil(1 << k) >= HEADS_OVERVIEW_SIDE)
+        .unwrap_or(1)
+}
 /// Bytes of one tile index entry.
 pub const INDEX_ENTRY_LEN: usize = 56;
 /// Smallest tile side a file may declare (unless the raster itself is smaller).
@@ -235,10 +257,15 @@ fn ramp(p: usize, a: usize, b: usize, n: usize, m: usize) -> u64 {
 /// One tile's entry in the index: where its block is and what it holds.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TileEntry {
-    /// Byte offset of the tile's block in the file.
+    /// Byte offset of the tile's block in the file (version 5: of its head).
     pub offset: u64,
     /// Bytes of the block.
     pub length: u64,
+    /// Bytes of the block at `offset`: version 5's head (the chunks overview `split` reads),
+    /// else the whole block.
+    pub head: u64,
+    /// Where the rest of the block (`length − head` bytes) lies: version 5's tail.
+    pub tail_offset: u64,
     /// CRC-32 of the block.
     pub crc: u32,
     /// The type of the tile's primary section (its method).
@@ -266,6 +293,13 @@ impl TileEntry {
         }
         let j = (n - 1).saturating_sub(k as usize);
         self.chunks[j].0 as u64
+    }
+    /// The file's byte ranges holding the block's first `p` bytes: its head's part, then
+    /// (version 5, when `p` reaches past the head) its tail's.
+    pub fn ranges(&self, p: u64) -> (std::ops::Range<u64>, Option<std::ops::Range<u64>>) {
+        let h = p.min(self.head);
+        let tail = (p > self.head).then(|| self.tail_offset..self.tail_offset + (p - self.head));
+        (self.offset..self.offset + h, tail)
     }
 }
 
@@ -297,9 +331,9 @@ pub fn tile_block(primary: u16, sections: &[Section]) -> Vec<u8> {
     out
 }
 
-/// The fixed part and header of a version-4 file. `header.primary` must be 0 and
+/// The fixed part and header of a version-5 file. `header.primary` must be 0 and
 /// `header.range` is not stored (the index holds each tile's).
-fn cloud_head_bytes(header: &Header, grid: &TileGrid, index_len: u32) -> Vec<u8> {
+fn cloud_head_bytes(header: &Header, grid: &TileGrid, index_len: u32, split: u32) -> Vec<u8> {
     let mut h = header.clone();
     h.primary = 0;
     h.range = None;
@@ -308,9 +342,10 @@ fn cloud_head_bytes(header: &Header, grid: &TileGrid, index_len: u32) -> Vec<u8>
     body.put_u32(grid.tile_h);
     body.put_u32(grid.margin);
     body.put_u32(index_len);
+    body.put_u32(split);
     let mut out = Vec::with_capacity(20 + body.len());
     out.extend_from_slice(&MAGIC);
-    out.put_u16(VERSION_CLOUD);
+    out.put_u16(VERSION_HEADS);
     out.put_u16(0);
     out.put_u32(body.len() as u32);
     out.extend_from_slice(&body);
@@ -319,7 +354,7 @@ fn cloud_head_bytes(header: &Header, grid: &TileGrid, index_len: u32) -> Vec<u8>
     out
 }
 
-/// Where tile blocks wait until the index is known: a version-4 file puts its index before
+/// Where tile blocks wait until the index is known: a version-5 file puts its index before
 /// them. Up to [`SPOOL_MEMORY`] bytes in memory, beyond that an unnamed temporary file
 /// (removed by the system however the process ends), so a large mosaic's encode stays
 /// within its memory budget.
@@ -331,13 +366,15 @@ enum Spool {
 /// Bytes of tile blocks a writer keeps in memory before it spools them to a temporary file.
 const SPOOL_MEMORY: usize = 64 << 20;
 
-/// Writes a tiled file (version 4) to any seekable sink, in two passes: tile blocks as
+/// Writes a tiled file (version 5) to any seekable sink, in two passes: tile blocks as
 /// they come (in tile order) into a spool, then at [`TiledWriter::finish`] the header, the
-/// index, the global sections and the blocks copied from the spool.
+/// index, the global sections, every block's head (the chunks overview `split` reads) and
+/// every block's tail, copied from the spool.
 pub struct TiledWriter<W: Write + Seek> {
     out: W,
     header: Header,
     grid: TileGrid,
+    split: u32,
     global: Vec<u8>,
     entries: Vec<TileEntry>,
     spool: Spool,
@@ -346,7 +383,7 @@ pub struct TiledWriter<W: Write + Seek> {
 
 impl<W: Write + Seek> TiledWriter<W> {
     /// Start a file with its global sections (metadata, GDAL metadata); nothing is written
-    /// to `out` before [`TiledWriter::finish`].
+    /// to `out` before [`TiledWriter::finish`]. The split is [`heads_split`] of the raster.
     pub fn new(out: W, header: &Header, grid: TileGrid, global: &[Section]) -> Result<Self> {
         let mut block = Vec::new();
         directory_bytes(&mut block, global);
@@ -354,6 +391,7 @@ impl<W: Write + Seek> TiledWriter<W> {
             out,
             header: header.clone(),
             grid,
+            split: heads_split(grid.width, grid.height),
             global: block,
             entries: Vec::with_capacity(grid.count().min(1 << 20) as usize),
             spool: Spool::Memory(Vec::new()),
@@ -384,7 +422,7 @@ impl<W: Write + Seek> TiledWriter<W> {
         let len = block.len() as u64;
         if len > u32::MAX as u64 {
             return Err(Error::limit(format!(
-                "a tile block of {len} bytes is over the 4 GiB a version-4 index holds: use smaller tiles"
+                "a tile block of {len} bytes is over the 4 GiB a version-5 index holds: use smaller tiles"
             )));
         }
         // Chunk ends, coarsest first: overview K = L reads the first, K = 1 the L-th, a full
@@ -412,21 +450,25 @@ impl<W: Write + Seek> TiledWriter<W> {
             }
             Spool::File(f) => f.write_all(block).map_err(io)?,
         }
-        self.entries.push(TileEntry {
+        let mut e = TileEntry {
             offset: self.pos,
             length: len,
+            head: len,
+            tail_offset: 0,
             crc: 0,
             kind,
             valid,
             range,
             max_error,
             chunks,
-        });
+        };
+        e.head = e.prefix(self.split);
+        self.entries.push(e);
         self.pos += len;
         Ok(())
     }
-    /// Write the header, the index, the global sections and the blocks; gives back the
-    /// sink.
+    /// Write the header, the index, the global sections, the heads and the tails; gives
+    /// back the sink.
     pub fn finish(mut self) -> Result<W> {
         if self.entries.len() as u64 != self.grid.count() {
             return Err(Error::invalid(format!(
@@ -456,16 +498,34 @@ impl<W: Write + Seek> TiledWriter<W> {
         idx.put_u32(crc);
         let index_len = u32::try_from(idx.len())
             .map_err(|_| Error::limit("a tile index over 4 GiB: use larger tiles"))?;
-        let head = cloud_head_bytes(&self.header, &self.grid, index_len);
+        let head = cloud_head_bytes(&self.header, &self.grid, index_len, self.split);
         let io = |e| Error::io("writing the file", e);
         self.out.write_all(&head).map_err(io)?;
         self.out.write_all(&idx).map_err(io)?;
         self.out.write_all(&self.global).map_err(io)?;
+        // The heads in tile order, then the tails: each a range of a block in the spool.
+        let heads = self.entries.iter().map(|e| (e.offset, e.head));
+        let tails = self
+            .entries
+            .iter()
+            .map(|e| (e.offset + e.head, e.length - e.head));
+        let parts: Vec<(u64, u64)> = heads.chain(tails).filter(|p| p.1 > 0).collect();
         match &mut self.spool {
-            Spool::Memory(v) => self.out.write_all(v).map_err(io)?,
+            Spool::Memory(v) => {
+                for (at, n) in parts {
+                    self.out
+                        .write_all(&v[at as usize..(at + n) as usize])
+                        .map_err(io)?;
+                }
+            }
             Spool::File(f) => {
-                f.seek(SeekFrom::Start(0)).map_err(io)?;
-                std::io::copy(f, &mut self.out).map_err(io)?;
+                let mut buf = Vec::new();
+                for (at, n) in parts {
+                    f.seek(SeekFrom::Start(at)).map_err(io)?;
+                    buf.resize(n as usize, 0);
+                    f.read_exact(&mut buf).map_err(io)?;
+                    self.out.write_all(&buf).map_err(io)?;
+                }
             }
         }
         self.out.flush().map_err(io)?;
@@ -658,6 +718,8 @@ fn read_index_v2(
         tiles.push(TileEntry {
             offset,
             length,
+            head: length,
+            tail_offset: end,
             crc,
             kind,
             valid,
@@ -685,14 +747,17 @@ fn read_index_v2(
     Ok((tiles, global))
 }
 
-/// Version 4's index (right after the header, `index_len` bytes) and global directory
-/// (right after the index); the blocks follow back to back and the last ends the file.
+/// Version 4's or 5's index (right after the header, `index_len` bytes) and global
+/// directory (right after the index); the blocks follow back to back and the last ends the
+/// file (version 5, `split` given: every block's head, then every block's tail).
+#[allow(clippy::too_many_arguments)]
 fn read_cloud_index(
     inner: &mut Source,
     header: &Header,
     grid: &TileGrid,
     index_at: u64,
     index_len: u64,
+    split: Option<u32>,
     limits: &Limits,
     names: KindNames,
 ) -> Result<(Vec<TileEntry>, Vec<SectionEntry>)> {
@@ -759,6 +824,8 @@ fn read_cloud_index(
         tiles.push(TileEntry {
             offset: 0,
             length,
+            head: length,
+            tail_offset: 0,
             crc: 0,
             kind,
             valid,
@@ -779,8 +846,15 @@ fn read_cloud_index(
     )?;
     let mut at = t0;
     for e in &mut tiles {
+        if let Some(k) = split {
+            e.head = e.prefix(k);
+        }
         e.offset = at;
-        at = at.saturating_add(e.length);
+        at = at.saturating_add(e.head);
+    }
+    for e in &mut tiles {
+        e.tail_offset = at;
+        at = at.saturating_add(e.length - e.head);
     }
     if at != file_len {
         return Err(if at > file_len {
@@ -797,7 +871,7 @@ fn read_cloud_index(
     Ok((tiles, global))
 }
 
-/// Reads a tiled file (version 2 or 4): the header and the index on opening, then any
+/// Reads a tiled file (version 2, 4 or 5): the header and the index on opening, then any
 /// tile on demand.
 pub struct TiledReader {
     inner: Source,
@@ -810,11 +884,12 @@ pub struct TiledReader {
 }
 
 impl TiledReader {
-    /// Open a version-2 or version-4 file and check its framing: header checksum and
+    /// Open a version-2, 4 or 5 file and check its framing: header checksum and
     /// fields, the index's checksum, that the tile blocks lie back to back (version 2:
     /// between the global sections and the index, which ends the file; version 4: after
-    /// the index and the global sections, the last ending the file), each entry's fields.
-    /// A version-4 file's header, index and global sections are usually inside the bytes
+    /// the index and the global sections, the last ending the file; version 5: the heads
+    /// there, then the tails), each entry's fields.
+    /// A version-4 or -5 file's header, index and global sections are usually inside the bytes
     /// the source read on opening ([`crate::source::HEAD_BYTES`]): no further read.
     pub fn new(mut inner: Source, limits: Limits, names: KindNames) -> Result<Self> {
         let file_len = inner.len();
@@ -826,7 +901,7 @@ impl TiledReader {
             return Err(Error::corrupt("not a vtz file (bad magic)"));
         }
         let version = u16::from_le_bytes([fixed[8], fixed[9]]);
-        if version != VERSION_TILED && version != VERSION_CLOUD {
+        if ![VERSION_TILED, VERSION_CLOUD, VERSION_HEADS].contains(&version) {
             return Err(Error::unsupported(format!("vtz format version {version}")));
         }
         let req = u16::from_le_bytes([fixed[10], fixed[11]]);
@@ -853,10 +928,10 @@ impl TiledReader {
         if !checksum_ok(h.finalize(), crc_bytes) {
             return Err(Error::corrupt("header checksum mismatch"));
         }
-        let fields = if version == VERSION_CLOUD {
-            CLOUD_FIELDS_LEN
-        } else {
-            TILE_FIELDS_LEN
+        let fields = match version {
+            VERSION_HEADS => HEADS_FIELDS_LEN,
+            VERSION_CLOUD => CLOUD_FIELDS_LEN,
+            _ => TILE_FIELDS_LEN,
         };
         if body.len() < fields {
             return Err(Error::corrupt("header: too short for the tile fields"));
@@ -874,8 +949,20 @@ impl TiledReader {
             margin: r.u32("margin")?,
         };
         let after_header = 16 + hlen as u64 + 4;
-        let (tiles, global) = if version == VERSION_CLOUD {
+        let (tiles, global) = if version == VERSION_CLOUD || version == VERSION_HEADS {
             let index_len = r.u32("index length")? as u64;
+            let split = if version == VERSION_HEADS {
+                let k = r.u32("split")?;
+                if !(1..MAX_CHUNKS as u32).contains(&k) {
+                    return Err(r.corrupt(&format!(
+                        "split {k} is out of range (1 ..= {})",
+                        MAX_CHUNKS - 1
+                    )));
+                }
+                Some(k)
+            } else {
+                None
+            };
             r.finish()?;
             grid.check()?;
             read_cloud_index(
@@ -884,6 +971,7 @@ impl TiledReader {
                 &grid,
                 after_header,
                 index_len,
+                split,
                 &limits,
                 names,
             )?
@@ -977,23 +1065,56 @@ impl TiledReader {
     }
 
     /// The blocks of tiles `ks` as an overview-`overview` decode reads them (0: a full
-    /// decode; in version 4 an overview reads a prefix of each block, its first chunks), in
-    /// one call to the source, which coalesces adjacent blocks and may fetch them at once.
+    /// decode; in versions 4 and 5 an overview reads a prefix of each block, its first
+    /// chunks; version 5 reads a block's head and its tail), in one call to the source,
+    /// which coalesces adjacent ranges and may fetch them at once.
     /// The outer error is the source's (nothing was read); each tile's own result says
     /// whether its checksums hold, so a decode may skip a corrupt tile.
     pub fn tile_blocks(&mut self, ks: &[usize], overview: u32) -> Result<Vec<Result<Vec<u8>>>> {
-        let mut ranges = Vec::with_capacity(ks.len());
+        let mut heads = Vec::with_capacity(ks.len());
+        let mut tails = Vec::new();
         for &k in ks {
             let e = self
                 .tiles
                 .get(k)
                 .ok_or_else(|| Error::invalid(format!("no tile {k}")))?;
-            ranges.push(e.offset..e.offset + e.prefix(overview));
+            let (h, t) = e.ranges(e.prefix(overview));
+            heads.push(h);
+            tails.extend(t.map(|t| (heads.len() - 1, t)));
         }
-        let got = self.inner.read_ranges(&ranges)?;
+        // Version 5: the heads of a window's tiles lie in the heads' region, a row of tiles
+        // apart per row: read them as one range when that costs at most a quarter more
+        // than the blocks themselves (the heads are a few % of the file), so a window of
+        // several rows of tiles takes one request for its heads.
+        let need: u64 = heads.iter().chain(tails.iter().map(|t| &t.1)).map(|r| r.end - r.start).sum();
+        let span = heads.iter().map(|r| r.start).min().unwrap_or(0)
+            ..heads.iter().map(|r| r.end).max().unwrap_or(0);
+        let head_bytes: u64 = heads.iter().map(|r| r.end - r.start).sum();
+        let one_span = !tails.is_empty()
+            && heads.len() > 1
+            && (span.end - span.start) - head_bytes <= (need / 4).max(crate::source::COALESCE_GAP);
+        let mut ranges: Vec<std::ops::Range<u64>> = if one_span {
+            vec![span.clone()]
+        } else {
+            heads.clone()
+        };
+        ranges.extend(tails.iter().map(|t| t.1.clone()));
+        let mut got = self.inner.read_ranges(&ranges)?.into_iter();
+        let mut blocks: Vec<Vec<u8>> = if one_span {
+            let all = got.next().unwrap_or_default();
+            heads
+                .iter()
+                .map(|r| all[(r.start - span.start) as usize..(r.end - span.start) as usize].to_vec())
+                .collect()
+        } else {
+            got.by_ref().take(heads.len()).collect()
+        };
+        for ((i, _), t) in tails.iter().zip(got) {
+            blocks[*i].extend_from_slice(&t);
+        }
         Ok(ks
             .iter()
-            .zip(got)
+            .zip(blocks)
             .map(|(&k, buf)| {
                 let e = &self.tiles[k];
                 let name = tile_name(&self.grid, k);

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
 /// Bytes read from the start of a file when it is opened: the header, the tile index of a
-/// version-4 file and its global sections fit here for a few hundred tiles
+/// version-4 or -5 file and its global sections fit here for a few hundred tiles
 /// (spec/FORMAT.md, "Version 4"), so opening costs one request. Matches the 16–64 KB
 /// GDAL reads first from a Cloud Optimized GeoTIFF.
 pub const HEAD_BYTES: u64 = 64 * 1024;
