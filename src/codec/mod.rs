@@ -293,7 +293,7 @@ pub struct FileInfo {
     pub primary: usize,
     /// The section directory, in file order (of a tiled file: its global sections).
     pub sections: Vec<SectionInfo>,
-    /// A tiled file's grid and index (container version 2 or 4); `None` for an untiled file.
+    /// A tiled file's grid and index (container version 2, 4 or 5); `None` for an untiled file.
     pub tiles: Option<TilesInfo>,
 }
 
@@ -312,6 +312,9 @@ pub struct TilesInfo {
     /// Samples each tile codes beyond its core on sides with a neighbour (decoders blend
     /// neighbours there).
     pub margin: u32,
+    /// Version 5's split: overview K ≥ it reads only the tiles' heads, which lie together
+    /// ([`TileInfo::head_bytes`]); `None` in versions 2 and 4.
+    pub overview_split: Option<u32>,
     /// The index, in tile order.
     pub tiles: Vec<TileInfo>,
 }
@@ -498,6 +501,7 @@ impl Decoder {
                     cols: g.cols(),
                     rows: g.rows(),
                     margin: g.margin,
+                    overview_split: r.split(),
                     tiles: r
                         .tiles()
                         .iter()

@@ -877,6 +877,7 @@ pub struct TiledReader {
     inner: Source,
     header: Header,
     grid: TileGrid,
+    split: Option<u32>,
     tiles: Vec<TileEntry>,
     global: Vec<SectionEntry>,
     limits: Limits,
@@ -949,9 +950,10 @@ impl TiledReader {
             margin: r.u32("margin")?,
         };
         let after_header = 16 + hlen as u64 + 4;
+        let mut split = None;
         let (tiles, global) = if version == VERSION_CLOUD || version == VERSION_HEADS {
             let index_len = r.u32("index length")? as u64;
-            let split = if version == VERSION_HEADS {
+            split = if version == VERSION_HEADS {
                 let k = r.u32("split")?;
                 if !(1..MAX_CHUNKS as u32).contains(&k) {
                     return Err(r.corrupt(&format!(
@@ -1009,6 +1011,7 @@ impl TiledReader {
             inner,
             header,
             grid,
+            split,
             tiles,
             global,
             limits,
@@ -1023,6 +1026,11 @@ impl TiledReader {
     /// The tile grid.
     pub fn grid(&self) -> TileGrid {
         self.grid
+    }
+    /// Version 5's split: overviews K ≥ it read only the tiles' heads (`None`: another
+    /// version).
+    pub fn split(&self) -> Option<u32> {
+        self.split
     }
     /// The index.
     pub fn tiles(&self) -> &[TileEntry] {

@@ -78,6 +78,8 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
         serde_json::json!({
             "tile_width": t.tile_width, "tile_height": t.tile_height,
             "cols": t.cols, "rows": t.rows, "count": t.tiles.len(), "margin": t.margin,
+            "overview_split": t.overview_split,
+            "head_bytes": t.tiles.iter().map(|e| e.head_bytes).sum::<u64>(),
             "index": t.tiles.iter().map(|e| serde_json::json!({
                 "tile": e.index, "x": e.window.x, "y": e.window.y,
                 "width": e.window.width, "height": e.window.height,
@@ -232,6 +234,15 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
             outln!(
                 "  {m:<9} {:>12} {b:>12} bytes",
                 common::count(*n as u64, "tile")
+            );
+        }
+        if let Some(k) = t.overview_split {
+            let heads: u64 = t.tiles.iter().map(|e| e.head_bytes).sum();
+            outln!(
+                "  heads     overview {k} ({} x {}) and coarser in one range: {heads} bytes ({:.1} % of the file)",
+                info.width.div_ceil(1 << k),
+                info.height.div_ceil(1 << k),
+                100.0 * heads as f64 / info.file_bytes.max(1) as f64
             );
         }
         if a.tiles {
