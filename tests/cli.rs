@@ -258,7 +258,10 @@ fn tiled_encode_decode_info_and_a_corrupt_tile() {
     // Corrupt the middle of tile 5's block.
     let t5 = &info["tiles"]["index"][5];
     // (Version 5: the block is its head at "offset", then its tail at "tail_offset".)
-    let (p, head) = (t5["bytes"].as_u64().unwrap() / 2, t5["head_bytes"].as_u64().unwrap());
+    let (p, head) = (
+        t5["bytes"].as_u64().unwrap() / 2,
+        t5["head_bytes"].as_u64().unwrap(),
+    );
     let at = if p < head {
         t5["offset"].as_u64().unwrap() + p
     } else {

@@ -81,14 +81,20 @@ fn a_tiled_encode_writes_version_5_index_first_then_heads_then_tails() {
     assert!(bytes.len() as u64 > 2 * HEAD_BYTES, "{} bytes", bytes.len());
     // A 1024² raster: split 1 (overview 1 is 512², under 1024).
     let h = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
-    assert_eq!(u32::from_le_bytes(bytes[12 + h..16 + h].try_into().unwrap()), 1);
+    assert_eq!(
+        u32::from_le_bytes(bytes[12 + h..16 + h].try_into().unwrap()),
+        1
+    );
     // The index and global sections end before the first head, inside the first read.
     assert!(t.tiles[0].offset < HEAD_BYTES, "{}", t.tiles[0].offset);
     // Heads back to back, then tails back to back, the last ending the file; a tile's head
     // is the prefix of its block overview 1 reads, a few % of it.
     for w in t.tiles.windows(2) {
         assert_eq!(w[0].offset + w[0].head_bytes, w[1].offset);
-        assert_eq!(w[0].tail_offset + w[0].bytes - w[0].head_bytes, w[1].tail_offset);
+        assert_eq!(
+            w[0].tail_offset + w[0].bytes - w[0].head_bytes,
+            w[1].tail_offset
+        );
     }
     let last = t.tiles.last().unwrap();
     assert_eq!(last.offset + last.head_bytes, t.tiles[0].tail_offset);
@@ -345,7 +351,10 @@ fn every_proper_prefix_of_a_version_5_and_4_file_is_rejected() {
     let bytes = vtz::encode(&src, &opts(1.0, 32, None)).unwrap();
     assert_eq!(u16::from_le_bytes([bytes[8], bytes[9]]), 5);
     let v4 = one_chunk_each(&bytes);
-    assert_eq!(vtz::decode(&v4).unwrap().data, vtz::decode(&bytes).unwrap().data);
+    assert_eq!(
+        vtz::decode(&v4).unwrap().data,
+        vtz::decode(&bytes).unwrap().data
+    );
     for n in 0..v4.len() {
         assert!(
             Decoder::new(Cursor::new(v4[..n].to_vec())).is_err(),
@@ -452,7 +461,11 @@ fn corrupt_version_5_indexes_are_rejected_naming_the_tile() {
     assert!(corrupt_msg(&b).contains("tile index checksum"));
     // An index length the tiles cannot fill; a split out of range (0, 13).
     let il = index_len_at(&bytes);
-    for (at, v, what) in [(il, 7u32, "index"), (il + 4, 0, "split"), (il + 4, 13, "split")] {
+    for (at, v, what) in [
+        (il, 7u32, "index"),
+        (il + 4, 0, "split"),
+        (il + 4, 13, "split"),
+    ] {
         let mut b = bytes.clone();
         b[at..at + 4].copy_from_slice(&v.to_le_bytes());
         let hcrc = crc32(&b[..16 + h]);

@@ -503,12 +503,18 @@ fn info_dict<'py>(py: Python<'py>, fi: &FileInfo) -> PyResult<Bound<'py, PyDict>
             td.set_item("cols", t.cols)?;
             td.set_item("rows", t.rows)?;
             td.set_item("margin", t.margin)?;
-            // Where each tile's block lies in the file, in tile order: (offset, bytes).
+            // Where each tile's block lies in the file, in tile order: (offset, bytes) of its
+            // first part (version 5: its head), and (offset, bytes) of the rest (version
+            // 5's tail; 0 bytes in versions 2 and 4, whose blocks are whole).
             let blocks = PyList::empty(py);
+            let tails = PyList::empty(py);
             for ti in &t.tiles {
-                blocks.append((ti.offset, ti.bytes))?;
+                blocks.append((ti.offset, ti.head_bytes))?;
+                tails.append((ti.tail_offset, ti.bytes - ti.head_bytes))?;
             }
             td.set_item("blocks", blocks)?;
+            td.set_item("tails", tails)?;
+            td.set_item("overview_split", t.overview_split)?;
             d.set_item("tiles", td)?;
         }
         None => d.set_item("tiles", py.None())?,

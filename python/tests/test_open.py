@@ -127,13 +127,20 @@ def test_metadata_of_a_tiled_georeferenced_file(tiled):
 
 
 def neighbourhood(info, i, j):
-    """The byte ranges of the blocks of tile (i, j) and its 8 neighbours."""
+    """The byte ranges of the blocks (version 5: heads and tails) of tile (i, j) and its 8
+    neighbours; in version 5 also the heads between the first and the last of them (a
+    reader may fetch the heads of several rows of tiles as one range)."""
     t = info["tiles"]
     out = []
     for ii in range(max(0, i - 1), min(t["rows"], i + 2)):
         for jj in range(max(0, j - 1), min(t["cols"], j + 2)):
-            off, n = t["blocks"][ii * t["cols"] + jj]
-            out.append((off, off + n))
+            for off, n in (t["blocks"][ii * t["cols"] + jj], t["tails"][ii * t["cols"] + jj]):
+                if n:
+                    out.append((off, off + n))
+    if t["overview_split"] is not None:
+        heads = [t["blocks"][ii * t["cols"] + jj] for ii in range(max(0, i - 1), min(t["rows"], i + 2))
+                 for jj in range(max(0, j - 1), min(t["cols"], j + 2))]
+        out.append((min(o for o, _ in heads), max(o + n for o, n in heads)))
     return out
 
 
@@ -179,7 +186,8 @@ def test_a_one_tile_window_reads_only_its_tile_and_neighbours(tiled):
         # Every block's bytes past the head, once (a block reaching past the head is
         # fetched from the head's end).
         head = 64 * 1024
-        past_head = [off + n - max(off, head) for off, n in info["tiles"]["blocks"] if off + n > head]
+        parts = info["tiles"]["blocks"] + info["tiles"]["tails"]
+        past_head = [off + n - max(off, head) for off, n in parts if n and off + n > head]
         assert f.bytes_read() == sum(past_head)
     # With the block cache (the default), a window read again fetches nothing.
     f = LoggingFile(data)
@@ -234,7 +242,7 @@ def container_version(data):
 
 
 def test_fsspec_cat_ranges_calls_for_a_window_of_four_tiles(tiled):
-    """A version-4 file's decoder asks for a band's tile blocks at once: one cat_ranges call
+    """A version-4 or -5 file's decoder asks for a band's tile blocks at once: one cat_ranges call
     (fsspec's async filesystems issue its ranges concurrently). A version-2 file's asks for
     them one by one: a call per block not in the head."""
     fs = CountingMemoryFS()

@@ -21,7 +21,9 @@ pub use surface::Surface;
 pub use tiles::{DEFAULT_TILE, tile_count};
 pub use verify::{Verified, verify_points};
 
-use crate::container::tiled::{TiledReader, VERSION_CLOUD, VERSION_HEADS, VERSION_TILED, peek_version};
+use crate::container::tiled::{
+    TiledReader, VERSION_CLOUD, VERSION_HEADS, VERSION_TILED, peek_version,
+};
 use crate::container::{ContainerReader, Limits, SF_REQUIRED};
 use crate::error::{Error, Result};
 use crate::formats::{self, Format, ReadOptions, WriteOptions};

@@ -678,7 +678,8 @@ pub(crate) fn decode_overview(
     let mut skipped = Vec::new();
     let pool = pool(opts.threads)?;
     let done = AtomicUsize::new(0);
-    let row_tiles = |tr: usize| -> Vec<usize> { tcols.iter().map(|(tc, _)| tr * cols + tc).collect() };
+    let row_tiles =
+        |tr: usize| -> Vec<usize> { tcols.iter().map(|(tc, _)| tr * cols + tc).collect() };
     // Blocks read for rows of tiles still to decode: one read for as many rows of tiles
     // as fit in OVERVIEW_READ_BYTES (at least one row), of each block the prefix this
     // overview needs (version 4 and 5: its first chunks; in version 5 at the file's split

@@ -956,7 +956,7 @@ impl TiledReader {
             split = if version == VERSION_HEADS {
                 let k = r.u32("split")?;
                 if !(1..MAX_CHUNKS as u32).contains(&k) {
-                    return Err(r.corrupt(&format!(
+                    return Err(r.corrupt(format!(
                         "split {k} is out of range (1 ..= {})",
                         MAX_CHUNKS - 1
                     )));
@@ -1094,7 +1094,11 @@ impl TiledReader {
         // apart per row: read them as one range when that costs at most a quarter more
         // than the blocks themselves (the heads are a few % of the file), so a window of
         // several rows of tiles takes one request for its heads.
-        let need: u64 = heads.iter().chain(tails.iter().map(|t| &t.1)).map(|r| r.end - r.start).sum();
+        let need: u64 = heads
+            .iter()
+            .chain(tails.iter().map(|t| &t.1))
+            .map(|r| r.end - r.start)
+            .sum();
         let span = heads.iter().map(|r| r.start).min().unwrap_or(0)
             ..heads.iter().map(|r| r.end).max().unwrap_or(0);
         let head_bytes: u64 = heads.iter().map(|r| r.end - r.start).sum();
@@ -1112,7 +1116,9 @@ impl TiledReader {
             let all = got.next().unwrap_or_default();
             heads
                 .iter()
-                .map(|r| all[(r.start - span.start) as usize..(r.end - span.start) as usize].to_vec())
+                .map(|r| {
+                    all[(r.start - span.start) as usize..(r.end - span.start) as usize].to_vec()
+                })
                 .collect()
         } else {
             got.by_ref().take(heads.len()).collect()
