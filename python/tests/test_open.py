@@ -128,8 +128,7 @@ def test_metadata_of_a_tiled_georeferenced_file(tiled):
 
 def neighbourhood(info, i, j):
     """The byte ranges of the blocks (version 5: heads and tails) of tile (i, j) and its 8
-    neighbours; in version 5 also the heads between the first and the last of them (a
-    reader may fetch the heads of several rows of tiles as one range)."""
+    neighbours."""
     t = info["tiles"]
     out = []
     for ii in range(max(0, i - 1), min(t["rows"], i + 2)):
@@ -137,10 +136,6 @@ def neighbourhood(info, i, j):
             for off, n in (t["blocks"][ii * t["cols"] + jj], t["tails"][ii * t["cols"] + jj]):
                 if n:
                     out.append((off, off + n))
-    if t["overview_split"] is not None:
-        heads = [t["blocks"][ii * t["cols"] + jj] for ii in range(max(0, i - 1), min(t["rows"], i + 2))
-                 for jj in range(max(0, j - 1), min(t["cols"], j + 2))]
-        out.append((min(o for o, _ in heads), max(o + n for o, n in heads)))
     return out
 
 
