@@ -1244,6 +1244,23 @@ mod tests {
         }
     }
 
+    /// The split is the largest overview whose longer side is still ≥ 1024 (the 20 000²
+    /// mosaic: overview 4, 1250²), else 1.
+    #[test]
+    fn the_split_keeps_a_screen_sized_overview_in_the_heads() {
+        for ((w, h), k) in [
+            ((20_000, 20_000), 4),
+            ((4096, 4096), 2),
+            ((4097, 10), 2),
+            ((2400, 2400), 1),
+            ((1000, 1000), 1),
+            ((100_000, 10), 6),
+            ((u32::MAX, 1), 12),
+        ] {
+            assert_eq!(heads_split(w, h), k, "{w} x {h}");
+        }
+    }
+
     #[test]
     fn a_margin_over_half_the_smallest_tile_is_refused() {
         let mut g = TileGrid::balanced(100, 100, 40, 8);
