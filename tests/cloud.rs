@@ -484,7 +484,7 @@ fn corrupt_version_5_indexes_are_rejected_naming_the_tile() {
 }
 
 /// In a version-5 (and 4) file the residual layer keeps the weighted scan (no coarse levels: an
-/// overview reads its whole block) only where it saves more than 3 % over interpolation.
+/// overview reads its whole block) only where it saves more than 15 % over interpolation.
 /// Kauai at 1 m in 256² tiles: the weighted scan is ~2 % smaller there, and before this rule
 /// it coded every residual tile (none progressive); now they take the levels-first coding.
 #[test]
