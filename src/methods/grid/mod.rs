@@ -377,6 +377,17 @@ pub fn decode(payload: &[u8], header: &Header, mask: Option<&[bool]>) -> Result<
         int_out: header.sample_type.is_integer().then_some((header.sample_type, header.mapping)),
     };
     let fill = header.nodata.unwrap_or(f64::NAN);
+    if mask_valid == 0 {
+        // No sample is coded (a tile of sea in a flat region, all nodata): the loop below
+        // would predict every code from zeros (0) and give every sample the fill; the same
+        // result without a prediction per sample (an overview of the 20000² mosaic spent
+        // 12 % of its time here).
+        match src {
+            Residuals::Varints(vr) => vr.finish()?,
+            Residuals::Range(dec, _) => dec.finish()?,
+        }
+        return Ok(vec![fill; n]);
+    }
     let mut codes = vec![0i64; n];
     let mut out = vec![0f64; n];
     for i in 0..n {
@@ -422,6 +433,43 @@ pub fn decode(payload: &[u8], header: &Header, mask: Option<&[bool]>) -> Result<
 mod tests {
     use super::*;
     use crate::model::Raster;
+
+    /// A section with no coded sample (a tile all in flat regions or nodata) decodes to the
+    /// fill everywhere, reads its whole (empty) stream, and a range-coded stream with bytes
+    /// left over is corrupt, as through the per-sample loop.
+    #[test]
+    fn a_section_with_no_coded_sample_decodes_to_the_fill() {
+        let (w, h) = (19, 7);
+        let r = Raster::from_values(w, h, vec![f64::NAN; w * h], None, SampleType::I16).unwrap();
+        let header = crate::container::Header {
+            width: w as u32,
+            height: h as u32,
+            sample_type: SampleType::I16,
+            primary: 0,
+            mapping: Default::default(),
+            nodata: Some(-32768.0),
+            range: None,
+            georef: None,
+        };
+        let dq = Dequant {
+            coding: CODING_INT,
+            step: 1.0,
+            offset: 0.0,
+            f32_out: false,
+            int_out: None,
+        };
+        for kind in [ENTROPY_DEFLATE, ENTROPY_RANGE] {
+            let payload = write_payload_as(&r, dq, vec![0; w * h], 0.0, Some(kind), &mut |_| {});
+            let mask = vec![false; w * h];
+            let back = decode(&payload, &header, Some(&mask)).unwrap();
+            assert_eq!(back, vec![-32768.0; w * h]);
+            if kind == ENTROPY_RANGE {
+                let mut longer = payload.clone();
+                longer.extend_from_slice(&[1, 2, 3, 4, 5, 6, 7, 8]);
+                assert!(decode(&longer, &header, Some(&mask)).is_err());
+            }
+        }
+    }
 
     #[test]
     fn both_residual_codings_decode_to_the_same_samples() {
