@@ -64,6 +64,12 @@ pub fn encode(bits: &[bool], w: usize, coded: impl Fn(usize) -> bool) -> Vec<u8>
 }
 
 /// Decode `n` bits of a `w`-wide bitmap coded by [`encode`] (the stream must end exactly).
+///
+/// Row by row, with each row's template bits kept in small shift registers (two bits of
+/// the row being decoded, five of the row above, three of the one above that): the same
+/// contexts as [`context`], without a division and ten loads per bit (the masks and flat
+/// regions of a tiled file's overview are decoded at full resolution: 21 % of an overview
+/// of the 20000² mosaic went to [`context`] and the decode loop).
 pub fn decode(
     stream: &[u8],
     w: usize,
@@ -73,11 +79,78 @@ pub fn decode(
     let mut dec = Decoder::new(stream)?;
     let mut bits = vec![false; n];
     let mut ctx = vec![Bit::default(); CONTEXTS];
-    for i in 0..n {
-        if coded(i) {
-            bits[i] = dec.decode(&mut ctx[context(&bits, w, i)]);
+    if w == 0 {
+        dec.finish()?;
+        return Ok(bits);
+    }
+    for (y, start) in (0..n).step_by(w).enumerate() {
+        let (done, rest) = bits.split_at_mut(start);
+        let row = &mut rest[..w.min(n - start)];
+        let r1 = (y >= 1).then(|| &done[start - w..start]);
+        let r2 = (y >= 2).then(|| &done[start - 2 * w..start - w]);
+        let get =
+            |r: Option<&[bool]>, x: usize| r.and_then(|r| r.get(x)).map_or(0, |&b| b as usize);
+        // w1: bit j = row above at x − 2 + j; w2: bit j = two rows above at x − 1 + j;
+        // w0: bit 0 = this row at x − 2, bit 1 at x − 1.
+        let mut w1 = get(r1, 0) << 2 | get(r1, 1) << 3 | get(r1, 2) << 4;
+        let mut w2 = get(r2, 0) << 1 | get(r2, 1) << 2;
+        let mut w0 = 0usize;
+        for (x, out) in row.iter_mut().enumerate() {
+            let c = (w0 >> 1 & 1)
+                | (w1 >> 2 & 1) << 1
+                | (w1 >> 1 & 1) << 2
+                | (w1 >> 3 & 1) << 3
+                | (w0 & 1) << 4
+                | (w2 >> 1 & 1) << 5
+                | (w1 & 1) << 6
+                | (w1 >> 4 & 1) << 7
+                | (w2 & 1) << 8
+                | (w2 >> 2 & 1) << 9;
+            let bit = coded(start + x) && dec.decode(&mut ctx[c]);
+            *out = bit;
+            w0 = w0 >> 1 | (bit as usize) << 1;
+            w1 = w1 >> 1 | get(r1, x + 3) << 4;
+            w2 = w2 >> 1 | get(r2, x + 2) << 2;
         }
     }
     dec.finish()?;
     Ok(bits)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The row-by-row decoder's contexts are [`context`]'s (the encoder's): random bitmaps
+    /// of narrow and odd widths, with every bit coded and with some skipped, round trip.
+    #[test]
+    fn the_decoder_reads_back_what_the_encoder_wrote_at_any_width() {
+        let mut s = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            s
+        };
+        for w in [1usize, 2, 3, 4, 5, 17, 64] {
+            for h in [1usize, 2, 3, 9] {
+                let n = w * h;
+                // Blobs more than noise: a bit is often its left neighbour's.
+                let mut bits = vec![false; n];
+                for i in 0..n {
+                    bits[i] = if i > 0 && next() % 4 != 0 {
+                        bits[i - 1]
+                    } else {
+                        next() % 2 == 0
+                    };
+                }
+                let skip = |i: usize| i % 7 != 3;
+                for coded in [&(|_| true) as &dyn Fn(usize) -> bool, &skip] {
+                    let want: Vec<bool> = (0..n).map(|i| coded(i) && bits[i]).collect();
+                    let stream = encode(&want, w, coded);
+                    assert_eq!(decode(&stream, w, n, coded).unwrap(), want, "{w} x {h}");
+                }
+            }
+        }
+    }
 }
