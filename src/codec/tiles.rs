@@ -633,14 +633,14 @@ fn blend(
     }
 }
 
-/// Overview `req.k` of a tiled file (the window `req.window` of it): each tile whose core
-/// holds an overview sample decodes at its own 2^k lattice (a row of tiles at a time, on
-/// every thread), and the sample takes the tile's value at the lattice point nearest it
-/// (ties to the lower; within the tile). Gives back the tiles skipped as corrupt.
 /// Bytes of tile blocks an overview decode reads at once (compressed: a few % of the
 /// samples' memory).
 const OVERVIEW_READ_BYTES: u64 = 64 << 20;
 
+/// Overview `req.k` of a tiled file (the window `req.window` of it): each tile whose core
+/// holds an overview sample decodes at its own 2^k lattice (a row of tiles at a time, on
+/// every thread), and the sample takes the tile's value at the lattice point nearest it
+/// (ties to the lower; within the tile). Gives back the tiles skipped as corrupt.
 pub(crate) fn decode_overview(
     rd: &mut TiledReader,
     opts: &DecodeOptions,

@@ -434,6 +434,29 @@ mod tests {
     use super::*;
     use crate::model::Raster;
 
+    /// The header of an int16 raster `r` with its valid range.
+    fn int16_header(r: &Raster, nodata: Option<f64>) -> crate::container::Header {
+        crate::container::Header {
+            width: r.width as u32,
+            height: r.height as u32,
+            sample_type: SampleType::I16,
+            primary: 0,
+            mapping: Default::default(),
+            nodata,
+            range: r.valid_range(),
+            georef: None,
+        }
+    }
+
+    /// Integer codes that are the values (step 1, offset 0).
+    const INTEGER_CODES: Dequant = Dequant {
+        coding: CODING_INT,
+        step: 1.0,
+        offset: 0.0,
+        f32_out: false,
+        int_out: None,
+    };
+
     /// A section with no coded sample (a tile all in flat regions or nodata) decodes to the
     /// fill everywhere, reads its whole (empty) stream, and a range-coded stream with bytes
     /// left over is corrupt, as through the per-sample loop.
@@ -441,23 +464,8 @@ mod tests {
     fn a_section_with_no_coded_sample_decodes_to_the_fill() {
         let (w, h) = (19, 7);
         let r = Raster::from_values(w, h, vec![f64::NAN; w * h], None, SampleType::I16).unwrap();
-        let header = crate::container::Header {
-            width: w as u32,
-            height: h as u32,
-            sample_type: SampleType::I16,
-            primary: 0,
-            mapping: Default::default(),
-            nodata: Some(-32768.0),
-            range: None,
-            georef: None,
-        };
-        let dq = Dequant {
-            coding: CODING_INT,
-            step: 1.0,
-            offset: 0.0,
-            f32_out: false,
-            int_out: None,
-        };
+        let header = int16_header(&r, Some(-32768.0));
+        let dq = INTEGER_CODES;
         for kind in [ENTROPY_DEFLATE, ENTROPY_RANGE] {
             let payload = write_payload_as(&r, dq, vec![0; w * h], 0.0, Some(kind), &mut |_| {});
             let mask = vec![false; w * h];
@@ -477,28 +485,13 @@ mod tests {
             .map(|i| ((i * 7919) % 1013) as f64 + if i % 11 == 0 { f64::NAN } else { 0.0 })
             .collect();
         let r = Raster::from_values(37, 23, data, None, SampleType::I16).unwrap();
-        let header = crate::container::Header {
-            width: 37,
-            height: 23,
-            sample_type: SampleType::I16,
-            primary: 0,
-            mapping: Default::default(),
-            nodata: None,
-            range: r.valid_range(),
-            georef: None,
-        };
+        let header = int16_header(&r, None);
         let codes: Vec<i64> = r
             .data
             .iter()
             .map(|&v| if v.is_nan() { 0 } else { v as i64 })
             .collect();
-        let dq = Dequant {
-            coding: CODING_INT,
-            step: 1.0,
-            offset: 0.0,
-            f32_out: false,
-            int_out: None,
-        };
+        let dq = INTEGER_CODES;
         for kind in [ENTROPY_DEFLATE, ENTROPY_RANGE] {
             let payload = write_payload_as(&r, dq, codes.clone(), 0.0, Some(kind), &mut |_| {});
             assert_eq!(payload[2], kind);
