@@ -245,7 +245,8 @@ pub fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> Resu
     use std::cell::RefCell;
     use std::collections::HashMap;
     use std::rc::Rc;
-    if threads == 0 {
+    // wasm32 without atomics has no threads to start (see `methods::Pool`).
+    if threads == 0 || cfg!(all(target_arch = "wasm32", not(target_feature = "atomics"))) {
         return Ok(f());
     }
     thread_local! {

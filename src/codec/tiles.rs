@@ -47,7 +47,7 @@ pub(crate) fn threads_for(n: usize) -> usize {
     }
 }
 
-pub(crate) fn pool(threads: usize) -> Result<rayon::ThreadPool> {
+pub(crate) fn pool(threads: usize) -> Result<crate::methods::Pool> {
     crate::methods::thread_pool(threads_for(threads))
 }
 
@@ -533,7 +533,7 @@ fn blend(
     (sy0, sy1): (usize, usize),
     fill: f64,
     header: &Header,
-    pool: &rayon::ThreadPool,
+    pool: &crate::methods::Pool,
 ) -> Raster {
     use rayon::prelude::*;
     let bh = sy1 - sy0;
