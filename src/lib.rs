@@ -42,6 +42,8 @@ mod predict;
 mod quant;
 pub mod source;
 pub mod viz;
+#[cfg(feature = "web")]
+pub mod web;
 
 #[cfg(test)]
 mod testutil;

@@ -7,7 +7,7 @@
 //! `.aux.xml`; EXR a PAM `.aux.xml`; each also an `.aux.xml` for GDAL_METADATA.
 
 pub(crate) mod asc;
-mod crs;
+pub(crate) mod crs;
 pub(crate) mod exr;
 pub(crate) mod geotiff;
 pub(crate) mod hgt;

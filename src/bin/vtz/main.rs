@@ -32,6 +32,7 @@ mod render;
 mod sites;
 mod tiles;
 mod verify;
+mod web;
 
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::process::ExitCode;
@@ -70,6 +71,9 @@ enum Cmd {
     Lsystem(lsystem::Args),
     /// A geographic raster or .vtz as Cesium terrain tiles (quantized-mesh-1.0, layer.json).
     Tiles(tiles::Args),
+    /// A georeferenced raster or .vtz as raster-dem tiles for web maps (MapLibre): a
+    /// Web Mercator pyramid in a PMTiles archive, vtz tiles or Terrarium/Terrain-RGB.
+    Web(web::Args),
     /// Draw a raster or .vtz as a shaded relief PNG (optionally with its sites).
     Render(render::Args),
     /// Check .vtz files end to end: every checksum, every section decoded, the decodes
@@ -220,6 +224,7 @@ fn main() -> ExitCode {
         Cmd::Mesh(a) => mesh::run(a, &ui),
         Cmd::Lsystem(a) => lsystem::run(a, &ui),
         Cmd::Tiles(a) => tiles::run(a, &ui),
+        Cmd::Web(a) => web::run(a, &ui),
         Cmd::Render(a) => render::run(a, &ui),
         Cmd::Rd(a) => rd::run(a, &ui),
         Cmd::Verify(a) => verify::run(a, &ui),
