@@ -326,6 +326,23 @@ fn rgb_formats_hold_the_same_pyramid() {
     req.min_zoom = 8;
     let (vb, vrep) = web(&r, &req);
     let v = read_archive(&vb);
+    // The uncompressed float32 pyramid: what the vtz tiles hold within their bound.
+    req.format = TileFormat::F32;
+    let f = read_archive(&web(&r, &req).0);
+    assert_eq!(
+        f.tiles.keys().collect::<Vec<_>>(),
+        v.tiles.keys().collect::<Vec<_>>()
+    );
+    for (key, t) in &f.tiles {
+        let bound = vrep.levels[(key.0 - 8) as usize].bound;
+        let vt = heights(&v.tiles[key]);
+        assert_eq!(t.len(), 512 * 512 * 4);
+        for (k, c) in t.chunks_exact(4).enumerate() {
+            let h = f64::from(f32::from_le_bytes(c.try_into().unwrap()));
+            assert_eq!(h.is_nan(), vt[k].is_nan());
+            assert!(h.is_nan() || (h - vt[k]).abs() <= bound, "{key:?} {k}");
+        }
+    }
     for (format, tile_type, step, base) in [
         (TileFormat::TerrariumPng, 2u8, 1.0 / 256.0, -32768.0),
         (TileFormat::TerrariumWebp, 4, 1.0 / 256.0, -32768.0),

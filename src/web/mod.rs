@@ -41,11 +41,20 @@ pub enum TileFormat {
     TerrariumWebp,
     /// Mapbox Terrain-RGB heights in an RGB PNG.
     MapboxPng,
+    /// The resampled heights themselves, uncompressed little-endian float32 (NaN =
+    /// nodata): the pyramid other codecs are measured on (PMTiles tile type 0).
+    F32,
 }
 
 impl TileFormat {
     /// The names `vtz web --format` takes.
-    pub const NAMES: [&'static str; 4] = ["vtz", "terrarium-png", "terrarium-webp", "mapbox-png"];
+    pub const NAMES: [&'static str; 5] = [
+        "vtz",
+        "terrarium-png",
+        "terrarium-webp",
+        "mapbox-png",
+        "f32",
+    ];
 
     /// The format of a `--format` name.
     pub fn parse(s: &str) -> Result<TileFormat> {
@@ -54,6 +63,7 @@ impl TileFormat {
             "terrarium-png" => TileFormat::TerrariumPng,
             "terrarium-webp" => TileFormat::TerrariumWebp,
             "mapbox-png" => TileFormat::MapboxPng,
+            "f32" => TileFormat::F32,
             _ => {
                 return Err(Error::invalid(format!(
                     "--format must be one of {}, not '{s}'",
@@ -70,12 +80,13 @@ impl TileFormat {
             TileFormat::TerrariumPng => "terrarium-png",
             TileFormat::TerrariumWebp => "terrarium-webp",
             TileFormat::MapboxPng => "mapbox-png",
+            TileFormat::F32 => "f32",
         }
     }
 
     fn rgb(self) -> Option<(RgbEncoding, ImageFormat)> {
         match self {
-            TileFormat::Vtz => None,
+            TileFormat::Vtz | TileFormat::F32 => None,
             TileFormat::TerrariumPng => Some((RgbEncoding::Terrarium, ImageFormat::Png)),
             TileFormat::TerrariumWebp => Some((RgbEncoding::Terrarium, ImageFormat::Webp)),
             TileFormat::MapboxPng => Some((RgbEncoding::Mapbox, ImageFormat::Png)),
@@ -88,6 +99,7 @@ impl TileFormat {
             TileFormat::Vtz => "vtz",
             TileFormat::TerrariumPng | TileFormat::TerrariumWebp => "terrarium",
             TileFormat::MapboxPng => "mapbox",
+            TileFormat::F32 => "float32",
         }
     }
 }
@@ -326,7 +338,7 @@ pub fn write_web_to<W: Write + Seek>(
     let bounds = src.bounds;
     let metadata = metadata(req, &levels, bounds, max_zoom);
     let tile_type = match req.format {
-        TileFormat::Vtz => pmtiles::TileType::Unknown,
+        TileFormat::Vtz | TileFormat::F32 => pmtiles::TileType::Unknown,
         TileFormat::TerrariumPng | TileFormat::MapboxPng => pmtiles::TileType::Png,
         TileFormat::TerrariumWebp => pmtiles::TileType::Webp,
     };
@@ -377,6 +389,10 @@ fn encode_tile(level: &Level, x: u32, y: u32, req: &WebRequest, bound: f64) -> R
             .fold(0.0, f64::max);
         let bytes = rgb::encode_image(&rgb, dim, img).map_err(ctx)?;
         return Ok((x, y, bytes, err, valid));
+    }
+    if req.format == TileFormat::F32 {
+        let bytes = heights.iter().flat_map(|h| h.to_le_bytes()).collect();
+        return Ok((x, y, bytes, 0.0, valid));
     }
     let data: Vec<f64> = heights.iter().map(|&h| f64::from(h)).collect();
     let d = dim as usize;
@@ -436,6 +452,7 @@ fn metadata(
 ) -> serde_json::Value {
     let format = match req.format {
         TileFormat::Vtz => "vtz",
+        TileFormat::F32 => "f32",
         TileFormat::TerrariumPng | TileFormat::MapboxPng => "png",
         TileFormat::TerrariumWebp => "webp",
     };

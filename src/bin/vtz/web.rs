@@ -16,7 +16,8 @@ pub struct Args {
     pub output: PathBuf,
     /// Tile content: vtz (default: .vtz streams within each zoom's bound, decoded in the
     /// browser by web/), or today's lossless encodings for comparison: terrarium-png,
-    /// terrarium-webp, mapbox-png.
+    /// terrarium-webp, mapbox-png; or f32, the resampled heights uncompressed (for
+    /// measuring other codecs on the same pyramid).
     #[arg(long, value_name = "FMT", default_value = "vtz")]
     pub format: String,
     /// Pixels a tile side: 256 or 512.
