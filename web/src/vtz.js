@@ -89,7 +89,11 @@ function instantiate() {
   x = new WebAssembly.Instance(/** @type {WebAssembly.Module} */ (module), imports).exports;
 }
 
-/** Call into the module; a trap (a Rust panic) leaves it unusable, so start a fresh one. */
+/**
+ * Call into the module; a trap (a Rust panic) leaves it unusable, so start a fresh one.
+ * The module's buffers are released after a success; after an error they stay until the
+ * next call replaces them.
+ */
 function call(/** @type {() => any} */ f) {
   if (!x) throw new Error('vtz: call init() first');
   try {
@@ -135,13 +139,11 @@ function decodeIn(/** @type {ArrayBuffer | ArrayBufferView} */ bytes, /** @type 
  */
 export function decode(bytes, opts = {}) {
   return call(() => {
-    try {
-      decodeIn(bytes, opts.nodata === 'value' ? NODATA_AS_VALUE : 0);
-      const heights = new Float32Array(x.memory.buffer, x.vtz_heights_ptr(), x.vtz_heights_len()).slice();
-      return { width: x.vtz_width(), height: x.vtz_height(), heights, nodata: x.vtz_nodata() };
-    } finally {
-      x.vtz_free();
-    }
+    decodeIn(bytes, opts.nodata === 'value' ? NODATA_AS_VALUE : 0);
+    const heights = new Float32Array(x.memory.buffer, x.vtz_heights_ptr(), x.vtz_heights_len()).slice();
+    const d = { width: x.vtz_width(), height: x.vtz_height(), heights, nodata: x.vtz_nodata() };
+    x.vtz_free();
+    return d;
   });
 }
 
@@ -169,21 +171,20 @@ export function decodeRGBA(input, opts = {}) {
   const { code, quantum, baseShift } = packing(opts);
   const fill = opts.fill ?? 0;
   return call(() => {
-    try {
-      if (input && typeof input === 'object' && 'heights' in input) {
-        const { width, height, heights } = input;
-        if (heights.length !== width * height) throw new TypeError('vtz: heights.length is not width × height');
-        const p = x.vtz_set_heights(width, height);
-        new Float32Array(x.memory.buffer, p, heights.length).set(heights);
-      } else {
-        decodeIn(/** @type {ArrayBuffer | ArrayBufferView} */ (input), 0);
-      }
-      check(x.vtz_to_rgba(code, quantum, baseShift, fill));
-      const rgba = new Uint8ClampedArray(x.memory.buffer, x.vtz_rgba_ptr(), x.vtz_rgba_len()).slice();
-      return { width: x.vtz_width(), height: x.vtz_height(), rgba };
-    } finally {
-      x.vtz_free();
+    if (input && typeof input === 'object' && 'heights' in input) {
+      const { width, height, heights } = input;
+      if (heights.length !== width * height) throw new TypeError('vtz: heights.length is not width × height');
+      const p = x.vtz_set_heights(width, height);
+      if (p === 0) throw new RangeError('vtz: width × height is too large');
+      new Float32Array(x.memory.buffer, p, heights.length).set(heights);
+    } else {
+      decodeIn(/** @type {ArrayBuffer | ArrayBufferView} */ (input), 0);
     }
+    check(x.vtz_to_rgba(code, quantum, baseShift, fill));
+    const rgba = new Uint8ClampedArray(x.memory.buffer, x.vtz_rgba_ptr(), x.vtz_rgba_len()).slice();
+    const out = { width: x.vtz_width(), height: x.vtz_height(), rgba };
+    x.vtz_free();
+    return out;
   });
 }
 
