@@ -16,13 +16,9 @@ import { createServer } from 'node:http';
 import { closeSync, createReadStream, existsSync, openSync, readFileSync, readSync, statSync } from 'node:fs';
 import { dirname, extname, join, resolve, sep } from 'node:path';
 import { fileURLToPath } from 'node:url';
-import { chromium } from 'playwright-core';
-import pngjs from 'pngjs';
+import { MIN_COLOURS, MIN_LUMA_STD, TYPES, blank, describe, launch, measure } from './harness.mjs';
 
-const { PNG } = pngjs;
 const HERE = dirname(fileURLToPath(import.meta.url));
-const MIN_COLOURS = 64;
-const MIN_LUMA_STD = 15;
 const SIZE = { width: 1024, height: 768 };
 
 function usage(msg) {
@@ -32,29 +28,6 @@ function usage(msg) {
   process.exit(2);
 }
 
-// Distinct RGB colours and the standard deviation of Rec. 709 luminance (0–255).
-function measure(file) {
-  const png = PNG.sync.read(readFileSync(file));
-  const { data, width, height } = png;
-  const colours = new Set();
-  let sum = 0;
-  let sum2 = 0;
-  const n = width * height;
-  for (let i = 0; i < n; i++) {
-    const r = data[4 * i];
-    const g = data[4 * i + 1];
-    const b = data[4 * i + 2];
-    colours.add((r << 16) | (g << 8) | b);
-    const y = 0.2126 * r + 0.7152 * g + 0.0722 * b;
-    sum += y;
-    sum2 += y * y;
-  }
-  const mean = sum / n;
-  const std = Math.sqrt(Math.max(0, sum2 / n - mean * mean));
-  return { width, height, colours: colours.size, lumaMean: mean, lumaStd: std };
-}
-const describe = (m) => `${m.width}×${m.height}, ${m.colours} colours, luminance mean ${m.lumaMean.toFixed(1)} std ${m.lumaStd.toFixed(1)}`;
-const blank = (m) => m.colours < MIN_COLOURS || m.lumaStd < MIN_LUMA_STD;
 
 // ---- arguments
 const argv = process.argv.slice(2);
@@ -96,12 +69,6 @@ if (opts.tiles) {
 }
 
 // ---- the server
-const TYPES = {
-  '.html': 'text/html; charset=utf-8', '.js': 'text/javascript', '.mjs': 'text/javascript', '.css': 'text/css',
-  '.json': 'application/json', '.png': 'image/png', '.jpg': 'image/jpeg', '.svg': 'image/svg+xml',
-  '.wasm': 'application/wasm', '.glb': 'model/gltf-binary', '.ktx2': 'image/ktx2',
-  '.terrain': 'application/vnd.quantized-mesh', '.woff': 'font/woff', '.woff2': 'font/woff2',
-};
 const roots = [
   ['/view/', join(HERE, 'view')],
   ['/node_modules/', join(HERE, 'node_modules')],
@@ -150,16 +117,8 @@ await new Promise((ok) => server.listen(0, '127.0.0.1', ok));
 const origin = `http://127.0.0.1:${server.address().port}`;
 
 // ---- the browser
-const launchArgs = [
-  '--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
-  '--disable-background-networking', '--disable-component-update', '--disable-sync',
-  // WebGL on the CPU.
-  '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist',
-  // Nothing but this machine: every other host name fails to resolve.
-  '--host-resolver-rules=MAP * ~NOTFOUND, EXCLUDE 127.0.0.1',
-];
 const t0 = Date.now();
-const browser = await chromium.launch({ executablePath: chromePath, headless: true, args: launchArgs });
+const browser = await launch();
 const results = [];
 try {
   const pages = [];
