@@ -45,7 +45,7 @@ echo "build.sh: cargo build took $(( $(date +%s) - start )) s" >&2
 mkdir -p "$(dirname "${VTZ_WASM_OUT:-$here/dist/vtz.wasm}")"
 raw="$target_dir/wasm32-unknown-unknown/release/vtz_wasm.wasm"
 out=${VTZ_WASM_OUT:-$here/dist/vtz.wasm}
-if command -v wasm-metadce >/dev/null 2>&1 && command -v wasm-opt >/dev/null 2>&1; then
+if command -v wasm-metadce >/dev/null 2>&1 && command -v wasm-opt >/dev/null 2>&1 && command -v node >/dev/null 2>&1; then
     # las's chrono (default feature wasmbind) drags in wasm-bindgen, whose ~2,500
     # __wbindgen_describe_* exports and __wbindgen_placeholder__ imports vtz never uses:
     # keep only vtz_* and memory as roots, so they and the imports go.
@@ -65,7 +65,7 @@ if command -v wasm-metadce >/dev/null 2>&1 && command -v wasm-opt >/dev/null 2>&
     wasm-opt -O1 --strip-debug --strip-producers "$out.tmp" -o "$out"
     rm -f "$out.tmp"
 else
-    echo "build.sh: wasm-opt/wasm-metadce not found (apt-get install binaryen): copying the raw module" >&2
+    echo "build.sh: wasm-opt, wasm-metadce (apt-get install binaryen) or node not found: copying the raw module" >&2
     cp "$raw" "$out"
 fi
 echo "build.sh: $out $(wc -c <"$out") bytes (raw $(wc -c <"$raw")) after $(( $(date +%s) - start )) s" >&2

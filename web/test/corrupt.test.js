@@ -3,10 +3,12 @@
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
+import { pathToFileURL } from 'node:url';
+import path from 'node:path';
 import { init, decode, VtzError } from '../src/vtz.js';
 
 const dir = new URL('../../tests/golden/', import.meta.url);
-await init(process.env.VTZ_WASM ?? new URL('../dist/vtz.wasm', import.meta.url));
+await init(process.env.VTZ_WASM ? pathToFileURL(path.resolve(process.env.VTZ_WASM)) : new URL('../dist/vtz.wasm', import.meta.url));
 
 const files = ['v1_kauai_crop_residual', 'v1_kauai_crop_residual_lanes', 'v4_kauai_tiles', 'v5_kauai_tiles', 'v1_kauai_crop_haar'];
 

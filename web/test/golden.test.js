@@ -4,10 +4,12 @@
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
+import { pathToFileURL } from 'node:url';
+import path from 'node:path';
 import { init, decode, VtzError } from '../src/vtz.js';
 
 const dir = new URL('../../tests/golden/', import.meta.url);
-await init(process.env.VTZ_WASM ?? new URL('../dist/vtz.wasm', import.meta.url));
+await init(process.env.VTZ_WASM ? pathToFileURL(path.resolve(process.env.VTZ_WASM)) : new URL('../dist/vtz.wasm', import.meta.url));
 
 const names = fs.readdirSync(dir).filter((f) => f.endsWith('.vtz')).map((f) => f.slice(0, -4)).sort();
 const has = (name, ext) => fs.existsSync(new URL(name + ext, dir));

@@ -3,9 +3,11 @@
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
+import { pathToFileURL } from 'node:url';
+import path from 'node:path';
 import { init, decode, toRGBA, decodeRGBA, demEncoding } from '../src/vtz.js';
 
-await init(process.env.VTZ_WASM ?? new URL('../dist/vtz.wasm', import.meta.url));
+await init(process.env.VTZ_WASM ? pathToFileURL(path.resolve(process.env.VTZ_WASM)) : new URL('../dist/vtz.wasm', import.meta.url));
 const golden = (n) => fs.readFileSync(new URL(`../../tests/golden/${n}.vtz`, import.meta.url));
 
 /** MapLibre's raster-dem unpacking (DEMData.getUnpackVector): R·rf + G·gf + B·bf − baseShift. */
