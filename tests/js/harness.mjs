@@ -1,23 +1,16 @@
 // What the browser checks share: a static server on 127.0.0.1 that answers byte ranges
 // (PMTiles readers ask for them), Debian's Chromium headless through playwright-core with
 // software WebGL and no host but this one, a page watcher, and the blank-picture measure.
-import { createServer } from 'node:http';
-import { createReadStream, existsSync, readFileSync, statSync } from 'node:fs';
-import { extname, resolve, sep } from 'node:path';
+import { existsSync, readFileSync } from 'node:fs';
 import { chromium } from 'playwright-core';
 import pngjs from 'pngjs';
 
 const { PNG } = pngjs;
+// The static server with byte ranges is the demo's own (web/demo/server.mjs).
+export { TYPES, serve } from '../../web/demo/server.mjs';
 export const MIN_COLOURS = 64;
 export const MIN_LUMA_STD = 15;
 
-export const TYPES = {
-  '.html': 'text/html; charset=utf-8', '.js': 'text/javascript', '.mjs': 'text/javascript', '.css': 'text/css',
-  '.json': 'application/json', '.png': 'image/png', '.jpg': 'image/jpeg', '.svg': 'image/svg+xml',
-  '.wasm': 'application/wasm', '.glb': 'model/gltf-binary', '.ktx2': 'image/ktx2',
-  '.terrain': 'application/vnd.quantized-mesh', '.woff': 'font/woff', '.woff2': 'font/woff2',
-  '.pmtiles': 'application/vnd.pmtiles',
-};
 
 /** Distinct RGB colours and the standard deviation of Rec. 709 luminance (0–255) of a PNG. */
 export function measure(file) {
@@ -41,65 +34,6 @@ export function measure(file) {
 }
 export const describe = (m) => `${m.width}×${m.height}, ${m.colours} colours, luminance mean ${m.lumaMean.toFixed(1)} std ${m.lumaStd.toFixed(1)}`;
 export const blank = (m) => m.colours < MIN_COLOURS || m.lumaStd < MIN_LUMA_STD;
-
-/**
- * Serve `roots` ([[url prefix, directory]...]) from 127.0.0.1 on a free port; `Range:
- * bytes=a-b` gets 206 and Content-Range. `onRequest(pathname, file, bytes)` sees every
- * answered request. Resolves to {origin, close, stats}.
- */
-export async function serve(roots, onRequest = () => {}) {
-  const stats = { requests: 0, ranges: 0, bytes: 0, missing: [] };
-  const fileFor = (pathname) => {
-    for (const [prefix, root] of roots) {
-      if (!pathname.startsWith(prefix)) continue;
-      const dir = resolve(root);
-      const f = resolve(dir, `.${sep}${decodeURIComponent(pathname.slice(prefix.length))}`);
-      return f.startsWith(dir + sep) ? f : undefined;
-    }
-    return undefined;
-  };
-  const server = createServer((req, res) => {
-    stats.requests++;
-    const url = new URL(req.url, 'http://localhost');
-    const f = fileFor(url.pathname);
-    if (!f || !existsSync(f) || !statSync(f).isFile()) {
-      if (url.pathname !== '/favicon.ico') stats.missing.push(url.pathname);
-      res.writeHead(404, { 'content-type': 'text/plain' });
-      res.end('not found');
-      return;
-    }
-    const size = statSync(f).size;
-    const headers = {
-      'content-type': TYPES[extname(f)] ?? 'application/octet-stream',
-      'cache-control': 'no-store',
-      'accept-ranges': 'bytes',
-    };
-    const m = /^bytes=(\d*)-(\d*)$/.exec(req.headers.range ?? '');
-    if (m && (m[1] !== '' || m[2] !== '')) {
-      let start = m[1] === '' ? size - Number(m[2]) : Number(m[1]);
-      let end = m[1] === '' || m[2] === '' ? size - 1 : Math.min(Number(m[2]), size - 1);
-      start = Math.max(0, start);
-      if (start > end || start >= size) {
-        res.writeHead(416, { 'content-range': `bytes */${size}` });
-        res.end();
-        return;
-      }
-      stats.ranges++;
-      stats.bytes += end - start + 1;
-      onRequest(url.pathname, f, end - start + 1);
-      res.writeHead(206, { ...headers, 'content-range': `bytes ${start}-${end}/${size}`, 'content-length': end - start + 1 });
-      createReadStream(f, { start, end }).pipe(res);
-      return;
-    }
-    stats.bytes += size;
-    onRequest(url.pathname, f, size);
-    res.writeHead(200, { ...headers, 'content-length': size });
-    createReadStream(f).pipe(res);
-  });
-  await new Promise((ok) => server.listen(0, '127.0.0.1', ok));
-  const origin = `http://127.0.0.1:${server.address().port}`;
-  return { origin, stats, close: () => new Promise((ok) => server.close(ok)) };
-}
 
 /** Debian's Chromium (or $CHROMIUM), headless, WebGL on the CPU, no host but 127.0.0.1. */
 export async function launch() {

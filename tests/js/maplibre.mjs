@@ -85,7 +85,7 @@ async function render(name, query, file) {
   const gl = await renderer(page);
   const vt = s.vtz ?? {};
   console.log(`${pageProblems.length ? 'FAIL' : 'ok  '} ${name}: ${file}: ${describe(m)}; first render ${s.firstRenderMs?.toFixed(0)} ms` +
-    (s.source === 'vtz' ? `; ${vt.tiles} vtz tiles (${(vt.bytes / 1024).toFixed(0)} KB), ${vt.empty} empty, ${(vt.decodeMs / Math.max(1, vt.tiles)).toFixed(1)} ms per tile in the worker round trip` : '') +
+    (s.source === 'vtz' ? `; ${vt.tiles} vtz tiles (${(vt.bytes / 1024).toFixed(0)} KB), ${vt.empty} empty, ${(vt.decodeMs / Math.max(1, vt.tiles)).toFixed(1)} ms per tile from request to bitmap (queueing and the workers' start included)` : '') +
     `; ${((Date.now() - t) / 1000).toFixed(1)} s (${gl})`);
   for (const p of pageProblems) console.log(`  ${name}: ${p}`);
   problems.push(...pageProblems.map((p) => `${name}: ${p}`));

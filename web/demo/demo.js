@@ -116,7 +116,7 @@ try {
   const s = vtz.stats;
   info.textContent = q.get('terrarium')
     ? `Terrarium tiles; first render ${firstRenderMs.toFixed(0)} ms`
-    : `${s.tiles} vtz tiles, ${(s.bytes / 1024).toFixed(0)} KB, decode ${(s.decodeMs / Math.max(1, s.tiles)).toFixed(1)} ms/tile (worker round trip); first render ${firstRenderMs.toFixed(0)} ms`;
+    : `${s.tiles} vtz tiles, ${(s.bytes / 1024).toFixed(0)} KB, ${(s.decodeMs / Math.max(1, s.tiles)).toFixed(1)} ms/tile from request to bitmap; first render ${firstRenderMs.toFixed(0)} ms`;
   window.ready = true;
 } catch (e) {
   window.errors.push(String(e?.stack ?? e));
