@@ -8,7 +8,8 @@ D = json.load(open(os.path.join(out, 'decode.json'))) if os.path.exists(os.path.
 N = json.load(open(os.path.join(out, 'node_decode.json'))) if os.path.exists(os.path.join(out, 'node_decode.json')) else None
 root = os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', '..')
 git = lambda *a: subprocess.run(['git', '-C', root, *a], capture_output=True, text=True).stdout.strip()
-commit = git('rev-parse', '--short', 'HEAD')
+CF = os.path.join(out, 'commit.txt')
+commit = open(CF).read().strip() if os.path.exists(CF) else git('rev-parse', '--short', 'HEAD')
 FR = ['0.25', '0.1', '0.05']
 FN = {'0.25': '1/4', '0.1': '1/10', '0.05': '1/20'}
 NAMES = {'kauai512': 'Kauai SRTM3, 512²', 'kauai256': 'Kauai SRTM3, 256²', 'srtm1_512': 'SRTM1 N45E013 (3600²), 512²'}
@@ -112,14 +113,15 @@ if N:
                 rows.append(['node_ms', k.split('.')[0], k.split('.', 1)[1], f'{op}:{m}', round(v[op][m], 4)])
     md.append('')
 NV = os.path.join(out, 'native.json')
-if os.path.exists(NV):
-    nv = json.load(open(NV))
-    md += ['## Native reference (CLI, one thread; rough)', '',
-           '`vtz decode --threads 1 -o X.f32` of each finest tile (5 runs, median) minus the same for the z0 tile '
-           '(process start, writing 1 MB of f32), ms.', '', '| archive | finest tiles | median | z0 baseline | difference |', '|---|---:|---:|---:|---:|']
+nv = json.load(open(NV)) if os.path.exists(NV) else {}
+if nv:
+    md += ['## Native reference (one thread, in process)', '',
+           f'web/wasm\'s `native_bench` example (decode + f32 conversion, `--threads 1`, 8 decodes a tile, median; '
+           f'binary {next(iter(nv.values()))["exe"]}), finest-zoom tiles, ms.', '',
+           '| archive | finest tiles | median over tiles | fastest tile | slowest tile |', '|---|---:|---:|---:|---:|']
     for k, v in nv.items():
-        md.append(f'| {k} | {v["n_finest"]} | {v["finest_median_ms"]:.2f} | {v["baseline_z0_ms"]:.2f} | {v["finest_minus_baseline_ms"]:.2f} |')
-        rows.append(['native_ms', k.split('.')[0], k.split('.', 1)[1], 'finest_minus_baseline', round(v['finest_minus_baseline_ms'], 4)])
+        md.append(f'| {k} | {v["n_finest"]} | {v["finest_median_ms"]:.2f} | {v["finest_min_ms"]:.2f} | {v["finest_max_ms"]:.2f} |')
+        rows.append(['native_ms', k.split('.')[0], k.split('.', 1)[1], 'decode:finest', round(v['finest_median_ms'], 4)])
     md.append('')
 open(prefix + '.md', 'w').write('\n'.join(md) + '\n')
 with open(prefix + '.csv', 'w', newline='') as fh:

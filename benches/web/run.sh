@@ -7,6 +7,7 @@
 # Needs: target/ci/vtz, web/dist/vtz.wasm, cwebp (Debian webp), /work/peers-venv (pylerc),
 # /usr/bin/python3 with GDAL, /usr/bin/chromium, `npm ci --prefix benches/web`.
 # VTZ_WEB_SKIP_SIZES=1 reuses OUTDIR's archives; VTZ_WEB_PASSES (default 5) decode passes.
+# The commit recorded is HEAD at the start; target/ci/vtz should be built from it.
 set -euo pipefail
 HERE=$(cd "$(dirname "$0")" && pwd)
 ROOT=$(cd "$HERE/../.." && pwd)
@@ -19,6 +20,7 @@ mkdir -p "$OUT"
 [ -d "$HERE/node_modules/lerc" ] || npm ci --prefix "$HERE" --no-audit --no-fund
 
 if [ -z "${VTZ_WEB_SKIP_SIZES:-}" ]; then
+  git -C "$ROOT" rev-parse --short HEAD >"$OUT/commit.txt"
   # The SRTM1 PNG as a georeferenced GeoTIFF: metres = code - 32768, code 0 = nodata,
   # pixel-is-area over 45..46N 13..14E.
   /usr/bin/python3 - "$SRTM1_PNG" "$OUT/srtm1_N45E013.tif" <<'PY'
