@@ -204,16 +204,21 @@ fn pack(s: &mut State, quantum: f64, base_shift: f64, fill: f64) -> Result<(), S
     let nodata = s.nodata_value;
     let mut rgba = std::mem::take(&mut s.rgba);
     rgba.clear();
-    rgba.reserve_exact(4 * s.heights.len());
-    rgba.extend(s.heights.iter().flat_map(|&h| {
+    rgba.resize(4 * s.heights.len(), 0);
+    // One pass writing each pixel's four bytes in place (a `flat_map` into `extend` ran
+    // 3 ms for a 512² tile in V8); `floor` is one wasm instruction where `f64::round` is a
+    // call, and for v ≥ 0 `floor(v)`, plus one when the fraction is ≥ ½, is `round(v)`.
+    for (px, &h) in rgba.chunks_exact_mut(4).zip(&s.heights) {
         let h = if h.is_nan() || nodata == Some(h) {
             fill
         } else {
             h as f64
         };
-        let n = ((h + base_shift) / quantum).round().clamp(0.0, MAX) as u32;
-        [(n >> 16) as u8, (n >> 8) as u8, n as u8, 255]
-    }));
+        let v = ((h + base_shift) / quantum).clamp(0.0, MAX);
+        let f = v.floor();
+        let n = (if v - f >= 0.5 { f + 1.0 } else { f }) as u32;
+        px.copy_from_slice(&(n.swap_bytes() >> 8 | 0xff00_0000).to_le_bytes());
+    }
     s.rgba = rgba;
     Ok(())
 }
