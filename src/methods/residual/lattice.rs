@@ -27,7 +27,13 @@ impl Domain {
     /// one multiplication, one division, one addition, each rounded to nearest f64).
     #[inline]
     pub fn raw(&self, k: i64) -> f64 {
-        self.offset + (k as f64 * self.mul) / self.div
+        self.raw_f(k as f64)
+    }
+
+    /// [`Domain::raw`] of an index already in f64 (exactly `k as f64`).
+    #[inline]
+    pub fn raw_f(&self, k: f64) -> f64 {
+        self.offset + (k * self.mul) / self.div
     }
 
     /// The nearest index of `v`.

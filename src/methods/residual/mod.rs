@@ -887,23 +887,21 @@ fn lattice_values(
         // (k + o in f64 is the index exactly: |k| < 2^31, |o| ≤ 2^38; and it vectorises.)
         fast::Rec::I32(v, o) => {
             let of = *o as f64;
-            let o = *o;
-            lattice_values_of(v, move |k| k as f64 + of, move |k| k as i64 + o, kinds, fill, domain, header, w, win, within)
+            lattice_values_of(v, move |k| k as f64 + of, kinds, fill, domain, header, w, win, within)
         }
         fast::Rec::I64(v, o) => {
             let o = *o;
-            lattice_values_of(v, move |k| (k + o) as f64, move |k| k + o, kinds, fill, domain, header, w, win, within)
+            lattice_values_of(v, move |k| (k + o) as f64, kinds, fill, domain, header, w, win, within)
         }
     }
 }
 
-/// [`lattice_values`] of a plane of `V`, `index` its lattice index.
+/// [`lattice_values`] of a plane of `V`, `index_f` its lattice index as f64 (exactly).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn lattice_values_of<V: Copy + Sync>(
     rec: &[V],
     index_f: impl Fn(V) -> f64 + Sync + Copy,
-    index: impl Fn(V) -> i64 + Sync + Copy,
     kinds: &[u8],
     fill: f64,
     domain: Domain,
@@ -921,7 +919,13 @@ fn lattice_values_of<V: Copy + Sync>(
         (true, Some(_)) if within => map_values(rec, kinds, fill, at, index_f),
         (true, Some((lo, hi))) => map_values(rec, kinds, fill, at, move |k| index_f(k).clamp(lo, hi)),
         (true, None) => map_values(rec, kinds, fill, at, |k| crate::quant::finish_value(index_f(k), header)),
-        _ => map_values(rec, kinds, fill, at, |k| finish_value(domain.raw(index(k)), header)),
+        // From the f64 index (the same value as the i64's: its conversion vectorises, the
+        // i64's does not), float32 samples rounded in the loop without the sample type's
+        // match per sample: the same values, a 512² web tile's mapping in less time.
+        _ if header.sample_type == SampleType::F32 => {
+            map_values(rec, kinds, fill, at, |k| domain.raw_f(index_f(k)) as f32 as f64)
+        }
+        _ => map_values(rec, kinds, fill, at, |k| finish_value(domain.raw_f(index_f(k)), header)),
     }
 }
 
