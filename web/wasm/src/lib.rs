@@ -208,13 +208,18 @@ fn pack(s: &mut State, quantum: f64, base_shift: f64, fill: f64) -> Result<(), S
     // One pass writing each pixel's four bytes in place (a `flat_map` into `extend` ran
     // 3 ms for a 512² tile in V8); `floor` is one wasm instruction where `f64::round` is a
     // call, and for v ≥ 0 `floor(v)`, plus one when the fraction is ≥ ½, is `round(v)`.
+    // A power-of-two quantum (Terrarium's 1/256) divides exactly as a multiplication by
+    // its inverse, which is several times cheaper than a division: the same codes.
+    let pow2 = quantum.is_normal() && quantum.to_bits() & ((1 << 52) - 1) == 0;
+    let inv = 1.0 / quantum;
     for (px, &h) in rgba.chunks_exact_mut(4).zip(&s.heights) {
         let h = if h.is_nan() || nodata == Some(h) {
             fill
         } else {
             h as f64
         };
-        let v = ((h + base_shift) / quantum).clamp(0.0, MAX);
+        let x = h + base_shift;
+        let v = (if pow2 { x * inv } else { x / quantum }).clamp(0.0, MAX);
         let f = v.floor();
         let n = (if v - f >= 0.5 { f + 1.0 } else { f }) as u32;
         px.copy_from_slice(&(n.swap_bytes() >> 8 | 0xff00_0000).to_le_bytes());
