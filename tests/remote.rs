@@ -877,6 +877,27 @@ fn s3_reads_uploads_and_errors() {
     assert_eq!(std::fs::read(&lo).unwrap(), std::fs::read(&ro).unwrap());
     let v = vtz_cmd(&["verify", url], &env);
     assert!(v.status.success(), "{}", stderr(&v));
+    // vtz web -o s3://…: the archive a local run writes, uploaded.
+    let web_local = dir.path().join("kauai.pmtiles");
+    let w = ["web", &corpus, "--max-zoom", "7", "-q", "-o"];
+    let a = vtz_cmd(&[&w[..], &[web_local.to_str().unwrap()]].concat(), &[]);
+    let b = vtz_cmd(
+        &[&w[..], &["s3://vtz-test/up/kauai.pmtiles"]].concat(),
+        &env,
+    );
+    assert!(
+        a.status.success() && b.status.success(),
+        "{}{}",
+        stderr(&a),
+        stderr(&b)
+    );
+    let (status, stored) = s3.get("/vtz-test/up/kauai.pmtiles");
+    assert_eq!(status, 200);
+    assert!(
+        stored == std::fs::read(&web_local).unwrap(),
+        "the uploaded archive differs"
+    );
+    assert_eq!(&stored[..7], b"PMTiles");
     // An existing object needs --force; an upload to a missing bucket fails (404) and
     // leaves nothing: no object, no staged file in the temporary directory.
     let tmp = dir.path().join("tmp");

@@ -11,7 +11,8 @@ pub struct Args {
     /// Input: a georeferenced raster (geographic, or projected with an EPSG code: GeoTIFF,
     /// SRTM .hgt, ASCII grid with .prj) or a .vtz of one.
     pub input: PathBuf,
-    /// Output archive (.pmtiles): tiles in the Web Mercator XYZ scheme.
+    /// Output archive (.pmtiles): tiles in the Web Mercator XYZ scheme; a local path or
+    /// s3://bucket/key (written locally, then uploaded; serve it with range requests).
     #[arg(short, long)]
     pub output: PathBuf,
     /// Tile content: vtz (default: .vtz streams within each zoom's bound, decoded in the
@@ -86,13 +87,23 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     );
     req.validate()?;
     common::check_not_dir(&a.input)?;
-    common::check_output(&a.input, &a.output, a.force)?;
+    let staged = match common::url_of(&a.output) {
+        Some(url) => Some(common::Staged::new(url, a.force)?),
+        None => {
+            common::check_output(&a.input, &a.output, a.force)?;
+            None
+        }
+    };
+    let local = staged.as_ref().map_or(&a.output, |s| &s.local);
     let r = common::read_raster(&a.input, in_format, &a.raster)?;
     let report = ui
         .progress("tiling", |p| {
-            vtz::web::write_web(&r, &req, &a.output, a.force, p)
+            vtz::web::write_web(&r, &req, local, a.force || staged.is_some(), p)
         })
         .map_err(|e| e.context(a.input.display()))?;
+    if let Some(s) = &staged {
+        s.upload(ui)?;
+    }
     if a.json {
         let levels: Vec<_> = report
             .levels
