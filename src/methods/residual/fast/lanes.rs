@@ -12,11 +12,11 @@
 use super::super::coder::quantize;
 use super::super::interp::interp1;
 use super::super::plane::{CODED, FIXED};
-use crate::predict::med::anchor_med;
 use super::passes::{FINE, Kind, NCOARSE, NW, Pass, half_log, token};
 use crate::entropy::rans::{self, BitReader, BitWriter, LanesDecoder};
 use crate::entropy::varint;
 use crate::error::{Error, Result};
+use crate::predict::med::anchor_med;
 use rayon::prelude::*;
 use std::ops::{Add, Mul, Neg, Shr, Sub};
 
@@ -120,7 +120,9 @@ pub(super) fn row_flags(kinds: &[u8], w: usize, h: usize) -> Vec<bool> {
     if kinds.is_empty() {
         return Vec::new();
     }
-    (0..h).map(|y| kinds[y * w..(y + 1) * w].iter().all(|&k| k == CODED)).collect()
+    (0..h)
+        .map(|y| kinds[y * w..(y + 1) * w].iter().all(|&k| k == CODED))
+        .collect()
 }
 
 /// The cubic interpolation at the middle of b and c: (−a + 9(b + c) − d + 8) >> 4.
@@ -166,7 +168,9 @@ impl<T: Lane> PassK<T> {
             binf: pass.bin as f64,
             hl_bin: half_log(pass.bin as u64),
             first: (pass.group * FINE) as u16,
-            wts: pass.weights.map(|w| std::array::from_fn(|k| T::of(w[k] as i64))),
+            wts: pass
+                .weights
+                .map(|w| std::array::from_fn(|k| T::of(w[k] as i64))),
         }
     }
 
@@ -219,7 +223,14 @@ pub(super) struct Scratch<T> {
 #[inline(always)]
 fn cubic_rows<T: Lane>(a: &[T], b: &[T], c: &[T], d: &[T], r: T, pred: &mut [T], t: &mut [T]) {
     let zero = T::of(0);
-    for (((((p, t), &a), &b), &c), &d) in pred.iter_mut().zip(t.iter_mut()).zip(a).zip(b).zip(c).zip(d) {
+    for (((((p, t), &a), &b), &c), &d) in pred
+        .iter_mut()
+        .zip(t.iter_mut())
+        .zip(a)
+        .zip(b)
+        .zip(c)
+        .zip(d)
+    {
         *p = cubic(a, b, c, d).clamp(zero, r);
         *t = curv(a, b, c, d);
     }
@@ -267,13 +278,23 @@ fn predict_row<T: Lane>(
             let [mb, mc, _, _] = &mut sc.m;
             if s == 1 {
                 // A constant stride: the gathers vectorise.
-                for (o, d) in [(&mut *ga, y - 3), (&mut *gb, y - 1), (&mut *gc, y + 1), (&mut *gd, y + 3)] {
+                for (o, d) in [
+                    (&mut *ga, y - 3),
+                    (&mut *gb, y - 1),
+                    (&mut *gc, y + 1),
+                    (&mut *gd, y + 3),
+                ] {
                     gather(row(d), 2, o);
                 }
                 gather(mrow(y - 1), 2, mb);
                 gather(mrow(y + 1), 2, mc);
             } else {
-                for (o, d) in [(&mut *ga, y - 3 * s), (&mut *gb, y - s), (&mut *gc, y + s), (&mut *gd, y + 3 * s)] {
+                for (o, d) in [
+                    (&mut *ga, y - 3 * s),
+                    (&mut *gb, y - s),
+                    (&mut *gc, y + s),
+                    (&mut *gd, y + 3 * s),
+                ] {
                     gather(row(d), st, o);
                 }
                 gather(mrow(y - s), st, mb);
@@ -285,7 +306,16 @@ fn predict_row<T: Lane>(
                 if n >= 3 {
                     let m = n - 2;
                     stencil_rows(
-                        [&gb[1..], &gc[1..], &ga[1..], &gd[1..], &gb[..m], &gc[..m], &gb[2..], &gc[2..]],
+                        [
+                            &gb[1..],
+                            &gc[1..],
+                            &ga[1..],
+                            &gd[1..],
+                            &gb[..m],
+                            &gc[..m],
+                            &gb[2..],
+                            &gc[2..],
+                        ],
                         wt,
                         g.r,
                         &mut pred[1..n - 1],
@@ -298,7 +328,12 @@ fn predict_row<T: Lane>(
             // Interior columns add half the four diagonal neighbours' (rows y ± s, x ± 2s).
             if n >= 3 {
                 let m = n - 2;
-                let it = sc.mm[1..n - 1].iter_mut().zip(&mb[..m]).zip(&mb[2..n]).zip(&mc[..m]).zip(&mc[2..n]);
+                let it = sc.mm[1..n - 1]
+                    .iter_mut()
+                    .zip(&mb[..m])
+                    .zip(&mb[2..n])
+                    .zip(&mc[..m])
+                    .zip(&mc[2..n]);
                 for ((((o, &b0), &b1), &c0), &c1) in it {
                     *o += (b0 as i32 + b1 as i32 + c0 as i32 + c1 as i32) >> 1;
                 }
@@ -332,14 +367,32 @@ fn predict_row<T: Lane>(
                 }
             }
             let k0 = 1.min(n);
-            let k1 = if 4 * s < w { ((w - 4 * s - 1) / st + 1).min(n).max(k0) } else { k0 };
+            let k1 = if 4 * s < w {
+                ((w - 4 * s - 1) / st + 1).min(n).max(k0)
+            } else {
+                k0
+            };
             if k1 > k0 {
                 let m = k1 - k0;
-                let (a, b, c, d) = (&ge[k0 - 1..], &ge[k0..], &ge[k0 + 1..], &ge[k0 + 2..k0 + 2 + m]);
+                let (a, b, c, d) = (
+                    &ge[k0 - 1..],
+                    &ge[k0..],
+                    &ge[k0 + 1..],
+                    &ge[k0 + 2..k0 + 2 + m],
+                );
                 cubic_rows(a, b, c, d, g.r, &mut pred[k0..k1], &mut sc.t[k0..k1]);
                 if let Some(wt) = wts {
                     stencil_rows(
-                        [b, c, a, d, &gu[k0..], &gu[k0 + 1..], &gd[k0..], &gd[k0 + 1..]],
+                        [
+                            b,
+                            c,
+                            a,
+                            d,
+                            &gu[k0..],
+                            &gu[k0 + 1..],
+                            &gd[k0..],
+                            &gd[k0 + 1..],
+                        ],
                         wt,
                         g.r,
                         &mut pred[k0..k1],
@@ -349,7 +402,12 @@ fn predict_row<T: Lane>(
                     *o = b as i32 + c as i32;
                 }
                 if around {
-                    let it = sc.mm[k0..k1].iter_mut().zip(&mu[k0..]).zip(&mu[k0 + 1..]).zip(&md[k0..]).zip(&md[k0 + 1..]);
+                    let it = sc.mm[k0..k1]
+                        .iter_mut()
+                        .zip(&mu[k0..])
+                        .zip(&mu[k0 + 1..])
+                        .zip(&md[k0..])
+                        .zip(&md[k0 + 1..]);
                     for ((((o, &u0), &u1), &d0), &d1) in it {
                         *o += (u0 as i32 + u1 as i32 + d0 as i32 + d1 as i32) >> 1;
                     }
@@ -379,7 +437,8 @@ fn predict_row<T: Lane>(
                 let i = y * w + x;
                 let get = |dd: isize| {
                     let yy = y as isize + dd * s as isize;
-                    (yy >= 0 && (yy as usize) < h).then(|| (i as isize + dd * (w * s) as isize) as usize)
+                    (yy >= 0 && (yy as usize) < h)
+                        .then(|| (i as isize + dd * (w * s) as isize) as usize)
                 };
                 let ib = i - w * s;
                 let (ia, ic, id) = (get(-3), get(1), get(3));
@@ -410,7 +469,15 @@ fn edge_curv(a: Option<i64>, b: i64, c: Option<i64>, d: Option<i64>) -> i64 {
 pub(super) trait Tokens<T: Lane> {
     /// The bins of a row's samples; `kinds`: the row's kinds at its samples' columns
     /// (`None`: all coded); `src`: the sources (encoder).
-    fn row<S: Fn(usize) -> i64, K: Fn(usize) -> u8>(&mut self, cb: &[u16], pred: &[T], src: &S, kinds: Option<&K>, bin: T, q: &mut [T]) -> Result<()>;
+    fn row<S: Fn(usize) -> i64, K: Fn(usize) -> u8>(
+        &mut self,
+        cb: &[u16],
+        pred: &[T],
+        src: &S,
+        kinds: Option<&K>,
+        bin: T,
+        q: &mut [T],
+    ) -> Result<()>;
 }
 
 /// Passes with at least this many columns code their bands in four interleaved states,
@@ -434,7 +501,15 @@ pub(super) struct Recorder {
 
 impl<T: Lane> Tokens<T> for Recorder {
     #[inline(always)]
-    fn row<S: Fn(usize) -> i64, K: Fn(usize) -> u8>(&mut self, cb: &[u16], pred: &[T], src: &S, kinds: Option<&K>, bin: T, q: &mut [T]) -> Result<()> {
+    fn row<S: Fn(usize) -> i64, K: Fn(usize) -> u8>(
+        &mut self,
+        cb: &[u16],
+        pred: &[T],
+        src: &S,
+        kinds: Option<&K>,
+        bin: T,
+        q: &mut [T],
+    ) -> Result<()> {
         let bin = bin.wide();
         let binf = bin as f64;
         for k in 0..q.len() {
@@ -443,7 +518,11 @@ impl<T: Lane> Tokens<T> for Recorder {
                 continue;
             }
             let r = src(k) - pred[k].wide();
-            let b = if bin == 1 { r } else { quantize_f64(r, bin, binf) };
+            let b = if bin == 1 {
+                r
+            } else {
+                quantize_f64(r, bin, binf)
+            };
             let v = varint::zigzag(b);
             let (t, raw, nb) = token(v);
             self.syms.push((cb[k], t, (k & self.mask) as u8));
@@ -498,19 +577,37 @@ impl Reader<'_> {
     /// The next token's zig-zagged bin.
     #[inline(always)]
     fn one<T: Lane>(&mut self, lane: usize, ctx: u16) -> Result<T> {
-        let t = self.ans.symbol(lane & self.mask, self.tables[(ctx & 255) as usize])?;
-        Ok(if t < 16 { T::of(t as i64) } else { T::of(self.escape(t)?) })
+        let t = self
+            .ans
+            .symbol(lane & self.mask, self.tables[(ctx & 255) as usize])?;
+        Ok(if t < 16 {
+            T::of(t as i64)
+        } else {
+            T::of(self.escape(t)?)
+        })
     }
 }
 
 impl<T: Lane> Tokens<T> for Reader<'_> {
     #[inline(always)]
-    fn row<S: Fn(usize) -> i64, K: Fn(usize) -> u8>(&mut self, cb: &[u16], _pred: &[T], _src: &S, kinds: Option<&K>, _bin: T, q: &mut [T]) -> Result<()> {
+    fn row<S: Fn(usize) -> i64, K: Fn(usize) -> u8>(
+        &mut self,
+        cb: &[u16],
+        _pred: &[T],
+        _src: &S,
+        kinds: Option<&K>,
+        _bin: T,
+        q: &mut [T],
+    ) -> Result<()> {
         let n = q.len();
         let cb = &cb[..n];
         if let Some(kd) = kinds {
             for k in 0..n {
-                q[k] = if kd(k) != CODED { T::of(0) } else { self.one(k % 4, cb[k])? };
+                q[k] = if kd(k) != CODED {
+                    T::of(0)
+                } else {
+                    self.one(k % 4, cb[k])?
+                };
             }
             return Ok(());
         }
@@ -521,7 +618,12 @@ impl<T: Lane> Tokens<T> for Reader<'_> {
                 q4[l] = self.one(l, c4[l])?;
             }
         }
-        for (l, (q, &c)) in qs.into_remainder().iter_mut().zip(cs.remainder()).enumerate() {
+        for (l, (q, &c)) in qs
+            .into_remainder()
+            .iter_mut()
+            .zip(cs.remainder())
+            .enumerate()
+        {
             *q = self.one(l, c)?;
         }
         Ok(())
@@ -569,6 +671,7 @@ pub(super) fn run_band<T: Lane, C: Tokens<T>>(
     let mut pred = vec![T::of(0); cols];
     let mut cb = vec![0u16; cols];
     let mut q = vec![T::of(0); cols];
+    let mut kinds_row: Vec<u8> = Vec::with_capacity(cols);
     let mut sc = Scratch::default();
     for k in k0..k1 {
         let y = pass.r0 + k * pass.rs;
@@ -581,14 +684,28 @@ pub(super) fn run_band<T: Lane, C: Tokens<T>>(
             coder.row(&cb, &pred, &src, None::<&fn(usize) -> u8>, kc.bin, &mut q)?;
             reconstruct(&pred, &q, kc.bin, g.r, rr, mr);
         } else {
-            let kd = |c: usize| g.kinds[at(c)];
+            // The row's kinds gathered once (they are strided in the plane): the coder reads
+            // them, and the fixed samples are looked for only in a row that has one.
+            kinds_row.clear();
+            kinds_row.extend(
+                g.kinds
+                    .get(at(0)..)
+                    .unwrap_or(&[])
+                    .iter()
+                    .step_by(pass.cs)
+                    .take(cols),
+            );
+            let kr = &kinds_row;
+            let kd = |c: usize| kr[c];
             coder.row(&cb, &pred, &src, Some(&kd), kc.bin, &mut q)?;
             reconstruct(&pred, &q, kc.bin, g.r, rr, mr);
             // A fixed sample keeps the value put into the plane before the passes ran.
-            let (pl, _) = planes.get();
-            for c in 0..cols {
-                if g.kinds[at(c)] == FIXED {
-                    rr[c] = pl[at(c)];
+            if kr.contains(&FIXED) {
+                let (pl, _) = planes.get();
+                for (c, &kind) in kr.iter().enumerate() {
+                    if kind == FIXED {
+                        rr[c] = pl[at(c)];
+                    }
                 }
             }
         }
@@ -665,9 +782,14 @@ pub(super) fn run_anchors<T: Lane>(
             let tl = (up && col > 0).then(|| own(j - cols - 1));
             let tr = (up && col + 1 < cols).then(|| own(j - cols + 1));
             let (p, t) = anchor_med(left, top, tl, tr, mid);
-            let m = i32::from(if col > 0 { mag[j - 1] } else { 0 }) + i32::from(if up { mag[j - cols] } else { 0 });
+            let m = i32::from(if col > 0 { mag[j - 1] } else { 0 })
+                + i32::from(if up { mag[j - cols] } else { 0 });
             let cbase = kc.class(T::of(t), m) as usize;
-            let kind = if g.kinds.is_empty() { CODED } else { g.kinds[i] };
+            let kind = if g.kinds.is_empty() {
+                CODED
+            } else {
+                g.kinds[i]
+            };
             let (r, q) = if kind == CODED {
                 let src = g.values.get(i).map_or(0, |v| v - g.lo);
                 let q = coder.one(col % 4, cbase, p, src, pass.bin)?;
@@ -705,31 +827,44 @@ impl AnchorTokens for Recorder {
 
 impl AnchorTokens for Reader<'_> {
     fn one(&mut self, lane: usize, ctx: usize, _: i64, _: i64, _: i64) -> Result<i64> {
-        Ok(varint::unzigzag(Reader::one::<i64>(self, lane, ctx as u16)? as u64))
+        Ok(varint::unzigzag(
+            Reader::one::<i64>(self, lane, ctx as u16)? as u64,
+        ))
     }
 }
 
 /// Write the bands' buffers into the planes, row by row on all threads.
-pub(super) fn scatter<T: Lane>(w: usize, pass: &Pass, bands: &[(usize, usize)], bufs: &[BandBuf<T>], plane: &mut [T], mag: &mut [u8]) {
+pub(super) fn scatter<T: Lane>(
+    w: usize,
+    pass: &Pass,
+    bands: &[(usize, usize)],
+    bufs: &[BandBuf<T>],
+    plane: &mut [T],
+    mag: &mut [u8],
+) {
     let cols = pass.cols(w);
     let (Some(&(first, next)), Some(&(_, end))) = (bands.first(), bands.last()) else {
         return;
     };
     let per = (next - first).max(1);
-    plane.par_chunks_mut(w).zip(mag.par_chunks_mut(w)).enumerate().for_each(|(y, (rr, mr))| {
-        if y < pass.r0 || (y - pass.r0) % pass.rs != 0 {
-            return;
-        }
-        let k = (y - pass.r0) / pass.rs;
-        if k < first || k >= end {
-            return;
-        }
-        let b = (k - first) / per;
-        let Some((br, bm)) = bufs.get(b) else { return };
-        let from = (k - bands[b].0) * cols;
-        put_row(&mut rr[pass.c0..], pass.cs, &br[from..from + cols]);
-        put_row(&mut mr[pass.c0..], pass.cs, &bm[from..from + cols]);
-    });
+    plane
+        .par_chunks_mut(w)
+        .zip(mag.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (rr, mr))| {
+            if y < pass.r0 || (y - pass.r0) % pass.rs != 0 {
+                return;
+            }
+            let k = (y - pass.r0) / pass.rs;
+            if k < first || k >= end {
+                return;
+            }
+            let b = (k - first) / per;
+            let Some((br, bm)) = bufs.get(b) else { return };
+            let from = (k - bands[b].0) * cols;
+            put_row(&mut rr[pass.c0..], pass.cs, &br[from..from + cols]);
+            put_row(&mut mr[pass.c0..], pass.cs, &bm[from..from + cols]);
+        });
 }
 
 /// Stencil weights a lane section may hold: the coarser points' (the pass's own two are 0)
