@@ -15,18 +15,20 @@
 //! the zoom's ground pixel size at the data's latitude farthest from the equator (where a
 //! pixel is smallest), as [`WebRequest::pixel_fraction`] says. The browser decoder (`web/`)
 //! turns it into heights and the RGBA MapLibre reads. The other formats write the same
-//! pyramid in today's encodings (module [`rgb`]) for comparison.
+//! pyramid in today's encodings (Terrarium, Terrain-RGB; the PNG reader's `RgbHeights`) for
+//! comparison.
 
 pub mod pyramid;
-pub mod rgb;
+mod rgb;
 
 use crate::error::{Error, Result};
+use crate::formats::png::RgbHeights;
 use crate::model::{Raster, SampleType};
 use crate::quant::ErrorBound;
 use crate::{Encoder, Method};
 use pyramid::{Level, Source};
 use rayon::prelude::*;
-use rgb::{ImageFormat, RgbEncoding};
+use rgb::ImageFormat;
 use std::io::{Seek, Write};
 use std::path::Path;
 
@@ -84,12 +86,12 @@ impl TileFormat {
         }
     }
 
-    fn rgb(self) -> Option<(RgbEncoding, ImageFormat)> {
+    fn rgb(self) -> Option<(RgbHeights, ImageFormat)> {
         match self {
             TileFormat::Vtz | TileFormat::F32 => None,
-            TileFormat::TerrariumPng => Some((RgbEncoding::Terrarium, ImageFormat::Png)),
-            TileFormat::TerrariumWebp => Some((RgbEncoding::Terrarium, ImageFormat::Webp)),
-            TileFormat::MapboxPng => Some((RgbEncoding::Mapbox, ImageFormat::Png)),
+            TileFormat::TerrariumPng => Some((RgbHeights::Terrarium, ImageFormat::Png)),
+            TileFormat::TerrariumWebp => Some((RgbHeights::Terrarium, ImageFormat::Webp)),
+            TileFormat::MapboxPng => Some((RgbHeights::TerrainRgb, ImageFormat::Png)),
         }
     }
 
@@ -323,8 +325,8 @@ pub fn write_web_to<W: Write + Seek>(
         }
         if let Some((enc, _)) = req.format.rgb() {
             lv.bound = match enc {
-                RgbEncoding::Terrarium => 1.0 / 512.0,
-                RgbEncoding::Mapbox => 0.05,
+                RgbHeights::Terrarium => 1.0 / 512.0,
+                RgbHeights::TerrainRgb => 0.05,
             };
         }
         levels.push(lv);
@@ -381,11 +383,11 @@ fn encode_tile(level: &Level, x: u32, y: u32, req: &WebRequest, bound: f64) -> R
     let valid = heights.iter().filter(|v| !v.is_nan()).count() as u64;
     let ctx = |e: Error| e.context(format!("tile {}/{x}/{y}", level.zoom));
     if let Some((enc, img)) = req.format.rgb() {
-        let rgb = enc.pack(&heights);
+        let rgb = rgb::pack(enc, &heights);
         let err = heights
             .iter()
             .filter(|h| !h.is_nan())
-            .map(|&h| (enc.height(enc.code(h)) - f64::from(h)).abs())
+            .map(|&h| (rgb::height(enc, rgb::code(enc, h)) - f64::from(h)).abs())
             .fold(0.0, f64::max);
         let bytes = rgb::encode_image(&rgb, dim, img).map_err(ctx)?;
         return Ok((x, y, bytes, err, valid));
