@@ -347,13 +347,6 @@ mod tests {
         vec![[0.0, 0.0], [s, 0.0], [s, s], [0.0, s]]
     }
 
-    fn lcg(seed: &mut u64) -> f64 {
-        *seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (*seed >> 11) as f64 / (1u64 << 53) as f64
-    }
-
     fn inside(poly: &[[f64; 2]], x: [f64; 2]) -> bool {
         (0..poly.len()).all(|i| cross(poly[i], poly[(i + 1) % poly.len()], x) >= -1e-9)
     }
@@ -375,14 +368,9 @@ mod tests {
 
     #[test]
     fn random_sites_tile_the_hull() {
-        let mut seed = 7;
+        let mut rng = crate::testutil::Rng(7);
         let pts: Vec<[f64; 2]> = (0..300)
-            .map(|_| {
-                [
-                    1000.0 + 50.0 * lcg(&mut seed),
-                    2000.0 + 30.0 * lcg(&mut seed),
-                ]
-            })
+            .map(|_| [1000.0 + 50.0 * rng.unit(), 2000.0 + 30.0 * rng.unit()])
             .collect();
         let hull = convex_hull(&pts);
         let samples: Vec<([f64; 2], f64)> = pts.iter().map(|&p| (p, 1.0)).collect();

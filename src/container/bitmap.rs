@@ -131,13 +131,8 @@ mod tests {
     /// of narrow and odd widths, with every bit coded and with some skipped, round trip.
     #[test]
     fn the_decoder_reads_back_what_the_encoder_wrote_at_any_width() {
-        let mut s = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            s
-        };
+        let mut rng = crate::testutil::Rng(0x9e37_79b9_7f4a_7c15);
+        let mut next = move || rng.next();
         for w in [1usize, 2, 3, 4, 5, 17, 64] {
             for h in [1usize, 2, 3, 9] {
                 let n = w * h;

@@ -509,11 +509,9 @@ mod tests {
         let enc = [EncTable::new(&t0), EncTable::new(&t1), EncTable::new(&t2)];
         let dec = DecTables::new(&[t0.clone(), t1.clone(), t2.clone()]);
         let mut syms = Vec::new();
-        let mut s = 12345u64;
+        let mut rng = crate::testutil::Rng(12345);
         for i in 0..20000 {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
+            let s = rng.next();
             let t = i % 3;
             let n = [t0.len(), t1.len(), 1][t];
             let mut sym = ((s >> 33) % n as u64) as u8;

@@ -321,13 +321,8 @@ mod tests {
 
     #[test]
     fn run_labels_are_the_flood_fills() {
-        let mut s = 99u64;
-        let mut next = move || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            s >> 33
-        };
+        let mut rng = crate::testutil::Rng(99);
+        let mut next = move || rng.next() >> 33;
         for case in 0..300 {
             let (w, h) = (1 + next() as usize % 40, 1 + next() as usize % 30);
             let density = next() % 100;

@@ -780,17 +780,10 @@ mod tests {
     /// Every length around the 255-byte chunks, dense and sparse: the filtered count's result.
     #[test]
     fn count_true_is_the_filtered_count() {
-        let mut s = 12345u64;
+        let mut rng = crate::testutil::Rng(12345);
         for n in [0usize, 1, 254, 255, 256, 510, 511, 1000, 4099] {
             for density in [0u64, 1, 50, 100] {
-                let v: Vec<bool> = (0..n)
-                    .map(|_| {
-                        s = s
-                            .wrapping_mul(6364136223846793005)
-                            .wrapping_add(1442695040888963407);
-                        (s >> 33) % 100 < density
-                    })
-                    .collect();
+                let v: Vec<bool> = (0..n).map(|_| rng.below(100) < density).collect();
                 assert_eq!(
                     count_true(&v),
                     v.iter().filter(|&&b| b).count(),

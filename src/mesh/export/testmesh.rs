@@ -35,12 +35,9 @@ pub fn surface(
 pub fn scattered(side: usize, count: usize, skirt: Option<f64>) -> Mesh {
     let mut seen = std::collections::HashSet::new();
     let mut vertices = Vec::with_capacity(count);
-    let mut x = 0x9E37_79B9_7F4A_7C15u64;
+    let mut rng = crate::testutil::Rng(0x9E37_79B9_7F4A_7C15);
     while vertices.len() < count {
-        // xorshift64
-        x ^= x << 13;
-        x ^= x >> 7;
-        x ^= x << 17;
+        let x = rng.next();
         let (col, row) = (
             (x % side as u64) as usize,
             ((x >> 32) % side as u64) as usize,

@@ -611,12 +611,12 @@ mod tests {
 
     /// A smooth surface with noise, a hole (skipped) and a fixed patch, on a lattice.
     fn plane_data(w: usize, h: usize) -> (Vec<u8>, Vec<i64>) {
-        let mut s = 7u64;
+        let mut rng = crate::testutil::Rng(7);
         let mut kinds = vec![CODED; w * h];
         let mut values = vec![0i64; w * h];
         for y in 0..h {
             for x in 0..w {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let s = rng.next();
                 let i = y * w + x;
                 let (fx, fy) = (x as f64 / 7.0, y as f64 / 5.0);
                 values[i] = (400.0 * fx.sin() * fy.cos() + 30.0 * (fx * fy).sqrt()) as i64
@@ -709,12 +709,12 @@ mod tests {
     /// A tall plane (several bands in every pass of levels 1 to 3 at bands of 2^10) of a
     /// rough surface, with a skipped disc and a fixed patch unless `all_coded`.
     fn tall_plane(w: usize, h: usize, all_coded: bool) -> (Vec<u8>, Vec<i64>) {
-        let mut s = 11u64;
+        let mut rng = crate::testutil::Rng(11);
         let mut kinds = vec![CODED; w * h];
         let mut values = vec![0i64; w * h];
         for y in 0..h {
             for x in 0..w {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let s = rng.next();
                 let i = y * w + x;
                 let (fx, fy) = (x as f64 / 9.0, y as f64 / 13.0);
                 values[i] = (300.0 * fx.sin() * fy.cos() + 2.0 * y as f64) as i64 + ((s >> 58) as i64 - 32);
@@ -763,9 +763,9 @@ mod tests {
             // Every single row, the first and last few, and random ranges.
             let mut windows: Vec<Range<usize>> = (0..h).map(|y| y..y + 1).collect();
             windows.extend([0..2, 0..h, h - 3..h, 1..h - 1]);
-            let mut r = 5u64;
+            let mut rng = crate::testutil::Rng(5);
             for _ in 0..120 {
-                r = r.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let r = rng.next();
                 let y0 = (r >> 33) as usize % h;
                 let len = 1 + (r >> 13) as usize % (h - y0).min(if r & 1 == 0 { 8 } else { h });
                 windows.push(y0..y0 + len);
