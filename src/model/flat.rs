@@ -240,28 +240,7 @@ pub(crate) fn find(r: &Raster) -> Option<Vec<f64>> {
             block[b] = c;
         }
     }
-    // Blocks of different components that touch both go.
-    let mut drop = vec![false; bw * bh];
-    for b in 0..bw * bh {
-        if block[b] == u32::MAX {
-            continue;
-        }
-        for j in [
-            (b % bw + 1 < bw).then(|| b + 1),
-            (b + bw < bw * bh).then(|| b + bw),
-        ]
-        .into_iter()
-        .flatten()
-        {
-            if block[j] != u32::MAX && block[j] != block[b] {
-                drop[b] = true;
-                drop[j] = true;
-            }
-        }
-    }
-    let kept: Vec<bool> = (0..bw * bh)
-        .map(|b| block[b] != u32::MAX && !drop[b])
-        .collect();
+    let kept = kept_blocks(&block, bw);
     if !kept.contains(&true) {
         return None;
     }
@@ -296,6 +275,31 @@ pub(crate) fn find(r: &Raster) -> Option<Vec<f64>> {
         })
         .collect();
     any.then_some(out)
+}
+
+/// Which of `bw`-wide row-major blocks are kept: a block wholly in one component
+/// (`block[b]`, `u32::MAX` for none) goes when it touches a block of another component.
+fn kept_blocks(block: &[u32], bw: usize) -> Vec<bool> {
+    let n = block.len();
+    let mut drop = vec![false; n];
+    for b in 0..n {
+        if block[b] == u32::MAX {
+            continue;
+        }
+        for j in [
+            (b % bw + 1 < bw).then(|| b + 1),
+            (b + bw < n).then(|| b + bw),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            if block[j] != u32::MAX && block[j] != block[b] {
+                drop[b] = true;
+                drop[j] = true;
+            }
+        }
+    }
+    (0..n).map(|b| block[b] != u32::MAX && !drop[b]).collect()
 }
 
 #[cfg(test)]
@@ -402,28 +406,8 @@ mod tests {
                 }
             }
         }
-        // Blocks of different components that touch both go.
-        let mut drop = vec![false; bw * bh];
-        for b in 0..bw * bh {
-            if block[b] == u32::MAX {
-                continue;
-            }
-            for j in [
-                (b % bw + 1 < bw).then(|| b + 1),
-                (b + bw < bw * bh).then(|| b + bw),
-            ]
-            .into_iter()
-            .flatten()
-            {
-                if block[j] != u32::MAX && block[j] != block[b] {
-                    drop[b] = true;
-                    drop[j] = true;
-                }
-            }
-        }
-        let kept: Vec<bool> = (0..bw * bh)
-            .map(|b| block[b] != u32::MAX && !drop[b])
-            .collect();
+        // (The block step is `find`'s own: this reference checks the components and regions.)
+        let kept = kept_blocks(&block, bw);
         let mut flat: Vec<bool> = (0..n)
             .map(|i| kept[(i / w / BLOCK) * bw + (i % w) / BLOCK])
             .collect();

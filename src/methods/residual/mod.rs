@@ -1062,6 +1062,26 @@ mod tests {
     /// make predictions, residuals, stencil sums and contexts largest: samples alternating
     /// between −2^38 and 2^38 (along rows, columns, both), random extremes, uniform noise
     /// over the range, a ramp, lone spikes.
+    /// The identity lattice over ±M with bin `bin`: the coder's setup and its plane.
+    fn extreme_setup<'a>(
+        w: usize,
+        h: usize,
+        kinds: &'a [u8],
+        values: &'a [i64],
+        bin: i64,
+    ) -> (Setup, Plane<'a>) {
+        let setup = Setup {
+            domain: Domain { mul: 1.0, div: 1.0, offset: 0.0 },
+            values: values.to_vec(),
+            lo: -M,
+            hi: M,
+            bin,
+            exceptions: Vec::new(),
+        };
+        let plane = Plane { width: w, height: h, kinds, values, lo: -M, hi: M, bin };
+        (setup, plane)
+    }
+
     fn extreme_planes(w: usize, h: usize) -> Vec<(&'static str, Vec<i64>)> {
         let mut rng = Rng(35);
         let n = w * h;
@@ -1108,23 +1128,7 @@ mod tests {
                     (0..w * h).map(|i| if holes && i % 11 == 5 { SKIPPED } else { CODED }).collect();
                 let mask: Option<Vec<bool>> = holes.then(|| kinds.iter().map(|&k| k == CODED).collect());
                 for bin in [1, 3, 1001, MAX_UNITS - 1] {
-                    let setup = Setup {
-                        domain: Domain { mul: 1.0, div: 1.0, offset: 0.0 },
-                        values: values.clone(),
-                        lo: -M,
-                        hi: M,
-                        bin,
-                        exceptions: Vec::new(),
-                    };
-                    let p = Plane {
-                        width: w,
-                        height: h,
-                        kinds: &kinds,
-                        values: &values,
-                        lo: -M,
-                        hi: M,
-                        bin,
-                    };
+                    let (setup, p) = extreme_setup(w, h, &kinds, &values, bin);
                     for pred in every_coding(w, h, bin) {
                         let what = format!("{name}, holes {holes}, bin {bin}, {pred:?}");
                         let (payload, rec) = match code(&p, pred, &setup, &[], &mut |_| {}) {
@@ -1161,23 +1165,7 @@ mod tests {
         let mut rng = Rng(7);
         for (_, values) in extreme_planes(w, h) {
             for bin in [1, MAX_UNITS - 1] {
-                let setup = Setup {
-                    domain: Domain { mul: 1.0, div: 1.0, offset: 0.0 },
-                    values: values.clone(),
-                    lo: -M,
-                    hi: M,
-                    bin,
-                    exceptions: Vec::new(),
-                };
-                let p = Plane {
-                    width: w,
-                    height: h,
-                    kinds: &kinds,
-                    values: &values,
-                    lo: -M,
-                    hi: M,
-                    bin,
-                };
+                let (setup, p) = extreme_setup(w, h, &kinds, &values, bin);
                 for pred in every_coding(w, h, bin) {
                     let Ok((payload, _)) = code(&p, pred, &setup, &[], &mut |_| {}) else { continue };
                     let sets = payload[3] as usize;

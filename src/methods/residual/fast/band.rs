@@ -3,7 +3,7 @@
 //! own when its bands run side by side.
 
 use crate::predict::med::anchor_med;
-use super::passes::{FINE, Kind, NCOARSE, NW, Pass, SymCoder, half_log};
+use super::passes::{BandBuf, FINE, Kind, NCOARSE, NW, Pass, SymCoder, half_log, scatter};
 use super::super::coder::quantize;
 use super::super::interp::interp1;
 use super::super::plane::{CODED, FIXED, Plane};
@@ -380,8 +380,6 @@ fn h_edge<C: SymCoder, S: Store>(
 }
 
 /// A band's reconstructions and magnitudes, pass row by pass row.
-type BandBuf = (Vec<i64>, Vec<u8>);
-
 /// Run consecutive bands of one pass (all of them, or those a window needs) with a coder
 /// each (`make` gives the b-th's, `done` takes it back): on one thread one after the
 /// other straight into the planes, else side by side, each into buffers of its own, then
@@ -405,7 +403,7 @@ pub(super) fn run_pass<C: SymCoder + Send, T: Send>(
         return Ok(out);
     }
     let cols = pass.cols(g.w);
-    let coded: Vec<(BandBuf, T)> = {
+    let coded: Vec<(BandBuf<i64>, T)> = {
         let (rec, mag) = (&*rec, &*mag);
         bands
             .par_iter()
@@ -425,43 +423,6 @@ pub(super) fn run_pass<C: SymCoder + Send, T: Send>(
             .collect::<Result<_>>()?
     };
     let (bufs, out): (Vec<_>, Vec<_>) = coded.into_iter().unzip();
-    scatter(g.w, pass, bands, &bufs, rec, mag);
+    scatter(g.w, &pass, bands, &bufs, rec, mag);
     Ok(out)
-}
-
-/// Write the bands' buffers back into the planes, row by row on all threads.
-fn scatter(
-    w: usize,
-    pass: Pass,
-    bands: &[(usize, usize)],
-    bufs: &[BandBuf],
-    rec: &mut [i64],
-    mag: &mut [u8],
-) {
-    let cols = pass.cols(w);
-    // `bands` are consecutive (all of the pass's, or those a window needs), each but the
-    // last as many pass rows as the first.
-    let (Some(&(first, next)), Some(&(_, end))) = (bands.first(), bands.last()) else {
-        return;
-    };
-    rec.par_chunks_mut(w)
-        .zip(mag.par_chunks_mut(w))
-        .enumerate()
-        .for_each(|(y, (rr, mr))| {
-            if y < pass.r0 || (y - pass.r0) % pass.rs != 0 {
-                return;
-            }
-            let k = (y - pass.r0) / pass.rs;
-            if k < first || k >= end {
-                return;
-            }
-            let b = (k - first) / (next - first).max(1);
-            let Some((br, bm)) = bufs.get(b) else { return };
-            let from = (k - bands[b].0) * cols;
-            for (col, (&v, &m)) in br[from..from + cols].iter().zip(&bm[from..from + cols]).enumerate() {
-                let x = pass.c0 + col * pass.cs;
-                rr[x] = v;
-                mr[x] = m;
-            }
-        });
 }

@@ -12,12 +12,11 @@
 use super::super::coder::quantize;
 use super::super::interp::interp1;
 use super::super::plane::{CODED, FIXED};
-use super::passes::{FINE, Kind, NCOARSE, NW, Pass, half_log, token};
+use super::passes::{BandBuf, FINE, Kind, NCOARSE, NW, Pass, half_log, put_row, token};
 use crate::entropy::rans::{self, BitReader, BitWriter, LanesDecoder};
 use crate::entropy::varint;
 use crate::error::{Error, Result};
 use crate::predict::med::anchor_med;
-use rayon::prelude::*;
 use std::ops::{Add, Mul, Neg, Shr, Sub};
 
 /// Contexts: per group, per energy class (the fast coding's).
@@ -650,8 +649,6 @@ fn reconstruct<T: Lane>(pred: &[T], q: &[T], bin: T, r: T, rec: &mut [T], mag: &
 }
 
 /// A band's reconstructions and magnitudes, pass row by pass row.
-pub(super) type BandBuf<T> = (Vec<T>, Vec<u8>);
-
 /// Run the pass rows k0..k1 of `pass` (not the anchors) into buffers of their own.
 #[inline(always)]
 pub(super) fn run_band<T: Lane, C: Tokens<T>>(
@@ -716,25 +713,6 @@ pub(super) fn run_band<T: Lane, C: Tokens<T>>(
         }
     }
     Ok((rec, mag))
-}
-
-/// `out[k·cs] = row[k]`.
-#[inline(always)]
-fn put_row<V: Copy>(out: &mut [V], cs: usize, row: &[V]) {
-    let full = (out.len() / cs).min(row.len());
-    if cs == 2 {
-        // A constant stride: the stores vectorise.
-        for (c, &v) in out.chunks_exact_mut(2).zip(&row[..full]) {
-            c[0] = v;
-        }
-    } else {
-        for (c, &v) in out.chunks_exact_mut(cs).zip(&row[..full]) {
-            c[0] = v;
-        }
-    }
-    for (k, &v) in row.iter().enumerate().skip(full) {
-        out[k * cs] = v;
-    }
 }
 
 /// [`run_band`] as a `pulp` operation: its loops inlined into a function compiled for the
@@ -831,40 +809,6 @@ impl AnchorTokens for Reader<'_> {
             Reader::one::<i64>(self, lane, ctx as u16)? as u64,
         ))
     }
-}
-
-/// Write the bands' buffers into the planes, row by row on all threads.
-pub(super) fn scatter<T: Lane>(
-    w: usize,
-    pass: &Pass,
-    bands: &[(usize, usize)],
-    bufs: &[BandBuf<T>],
-    plane: &mut [T],
-    mag: &mut [u8],
-) {
-    let cols = pass.cols(w);
-    let (Some(&(first, next)), Some(&(_, end))) = (bands.first(), bands.last()) else {
-        return;
-    };
-    let per = (next - first).max(1);
-    plane
-        .par_chunks_mut(w)
-        .zip(mag.par_chunks_mut(w))
-        .enumerate()
-        .for_each(|(y, (rr, mr))| {
-            if y < pass.r0 || (y - pass.r0) % pass.rs != 0 {
-                return;
-            }
-            let k = (y - pass.r0) / pass.rs;
-            if k < first || k >= end {
-                return;
-            }
-            let b = (k - first) / per;
-            let Some((br, bm)) = bufs.get(b) else { return };
-            let from = (k - bands[b].0) * cols;
-            put_row(&mut rr[pass.c0..], pass.cs, &br[from..from + cols]);
-            put_row(&mut mr[pass.c0..], pass.cs, &bm[from..from + cols]);
-        });
 }
 
 /// Stencil weights a lane section may hold: the coarser points' (the pass's own two are 0)

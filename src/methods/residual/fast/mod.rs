@@ -563,7 +563,7 @@ where
                 let mut c = make(k, b)?;
                 if pass.kind == Kind::Anchor {
                     let bufs = [lanes::run_anchors(&g, &plane, pass, &mut c)?];
-                    lanes::scatter(w, pass, picked, &bufs, &mut plane, &mut mag);
+                    passes::scatter(w, pass, picked, &bufs, &mut plane, &mut mag);
                 } else {
                     let mut planes = lanes::Planes::Own(&mut plane, &mut mag);
                     // The band's loops compiled for the best instruction set this processor has.
@@ -573,7 +573,7 @@ where
             }
             continue;
         }
-        let bufs: Vec<(lanes::BandBuf<T>, X)> = picked
+        let bufs: Vec<(passes::BandBuf<T>, X)> = picked
             .par_iter()
             .enumerate()
             .map(|(b, &band)| {
@@ -584,7 +584,7 @@ where
             })
             .collect::<Result<_>>()?;
         let (bufs, xs): (Vec<_>, Vec<_>) = bufs.into_iter().unzip();
-        lanes::scatter(w, pass, picked, &bufs, &mut plane, &mut mag);
+        passes::scatter(w, pass, picked, &bufs, &mut plane, &mut mag);
         out.extend(xs);
     }
     Ok((plane, out))

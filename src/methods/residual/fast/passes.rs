@@ -3,6 +3,7 @@
 
 use super::super::interp::level_bin;
 use crate::error::Result;
+use rayon::prelude::*;
 
 /// Context groups: level 1's horizontal pass, level 1's vertical pass, level 2, levels ≥ 3,
 /// anchors.
@@ -190,5 +191,64 @@ pub(super) fn token(v: u64) -> (u8, u64, u32) {
         let e = 63 - v.leading_zeros();
         let top = (v >> (e - 1)) & 1;
         ((16 + 2 * (e - 4) + top as u32) as u8, v & ((1 << (e - 1)) - 1), e - 1)
+    }
+}
+
+/// A band's rows apart from the planes: values and magnitudes, `cols` a pass row.
+pub(super) type BandBuf<T> = (Vec<T>, Vec<u8>);
+
+/// Write the bands' buffers (each band's pass rows, `cols` values a row) into the planes,
+/// row by row on all threads: both codings' bands side by side end here.
+pub(super) fn scatter<T: Copy + Send + Sync>(
+    w: usize,
+    pass: &Pass,
+    bands: &[(usize, usize)],
+    bufs: &[BandBuf<T>],
+    plane: &mut [T],
+    mag: &mut [u8],
+) {
+    let cols = pass.cols(w);
+    // `bands` are consecutive (all of the pass's, or those a window needs), each but the
+    // last as many pass rows as the first.
+    let (Some(&(first, next)), Some(&(_, end))) = (bands.first(), bands.last()) else {
+        return;
+    };
+    let per = (next - first).max(1);
+    plane
+        .par_chunks_mut(w)
+        .zip(mag.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (rr, mr))| {
+            if y < pass.r0 || (y - pass.r0) % pass.rs != 0 {
+                return;
+            }
+            let k = (y - pass.r0) / pass.rs;
+            if k < first || k >= end {
+                return;
+            }
+            let b = (k - first) / per;
+            let Some((br, bm)) = bufs.get(b) else { return };
+            let from = (k - bands[b].0) * cols;
+            put_row(&mut rr[pass.c0..], pass.cs, &br[from..from + cols]);
+            put_row(&mut mr[pass.c0..], pass.cs, &bm[from..from + cols]);
+        });
+}
+
+/// `out[k·cs] = row[k]`.
+#[inline(always)]
+pub(super) fn put_row<V: Copy>(out: &mut [V], cs: usize, row: &[V]) {
+    let full = (out.len() / cs).min(row.len());
+    if cs == 2 {
+        // A constant stride: the stores vectorise.
+        for (c, &v) in out.chunks_exact_mut(2).zip(&row[..full]) {
+            c[0] = v;
+        }
+    } else {
+        for (c, &v) in out.chunks_exact_mut(cs).zip(&row[..full]) {
+            c[0] = v;
+        }
+    }
+    for (k, &v) in row.iter().enumerate().skip(full) {
+        out[k * cs] = v;
     }
 }
