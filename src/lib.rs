@@ -71,8 +71,8 @@ pub use model::{
 };
 pub use points::{
     ColumnReport, DecodePoints, PointHierarchy, PointsInfo, PointsOptions, PointsReport,
-    RasterizePoints, decode_points, encode_points, is_points_file, point_hierarchy, points_info,
-    rasterize_points, verify_points,
+    RasterizePoints, bands_to_points, decode_points, encode_points, is_points_file,
+    point_hierarchy, points_info, rasterize_points, verify_points,
 };
 pub use quant::ErrorBound;
 pub use source::RangeSource;

@@ -12,10 +12,12 @@
 // Columns index several parallel arrays (values, bounds, lattices, surfaces) at once.
 #![allow(clippy::needless_range_loop)]
 
+mod bands;
 mod payload;
 mod scattered;
 mod verify;
 
+pub use bands::bands_to_points;
 pub use verify::verify_points;
 
 use crate::container::points::{
