@@ -18,9 +18,9 @@ use crate::model::{Raster, SampleType};
 pub(crate) use method::Sibson;
 pub use method::SibsonOptions;
 pub use select::Norm;
-// The narrow API for the applications outside the registry (`crate::points`' scattered
-// selection and level layout, `crate::terrain`'s pyramid): the greedy selection on a grid,
-// its convex hull, the level sizes.
+// The narrow API for the applications outside the registry (the point sets' scattered
+// selection and level layout, the terrain pyramid's ordering of sites): the greedy
+// selection on a grid, its convex hull, the level sizes.
 pub(crate) use select::{Samples, SelectParams, convex_hull, select as select_sites};
 mod method;
 use crate::quant::{Errors, code_of, finish_value, height_of};
