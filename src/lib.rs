@@ -38,9 +38,11 @@ mod mesh;
 mod methods;
 pub mod metrics;
 mod model;
+mod points;
 mod predict;
 mod quant;
 pub mod source;
+mod terrain;
 pub mod viz;
 #[cfg(feature = "web")]
 pub mod web;
@@ -49,19 +51,11 @@ pub mod web;
 mod testutil;
 
 pub use codec::Surface;
-pub use codec::cells::{CellsRequest, FileCells, file_cells};
-pub use codec::mesh::{MeshRequest, Select, mesh_file, mesh_raster};
-pub use codec::points::{
-    ColumnReport, DecodePoints, PointHierarchy, PointsInfo, PointsOptions, PointsReport,
-    RasterizePoints, decode_points, encode_points, is_points_file, point_hierarchy, points_info,
-    rasterize_points,
-};
-pub use codec::terrain::{TerrainLevel, TerrainReport, TerrainRequest, write_terrain};
 pub use codec::{
     DEFAULT_TILE, DecodeOptions, Decoder, EncodeOptions, EncodeReport, Encoder, FileInfo, Sample,
     Scale, SectionChoice, SectionInfo, TileInfo, TilesInfo, Verified, decode, decode_from,
     decode_with, encode, encode_progress, encode_report, encode_stream, info, on_threads,
-    read_path, tile_count, verify_points, write_path,
+    read_path, tile_count, write_path,
 };
 pub use container::Limits;
 pub use error::{Error, Result};
@@ -75,8 +69,17 @@ pub use model::{
     GeoKeys, Georef, InMemory, OutputType, PointSet, Raster, RasterType, RowSource, SampleType,
     ValueMapping, Window,
 };
+pub use points::{
+    ColumnReport, DecodePoints, PointHierarchy, PointsInfo, PointsOptions, PointsReport,
+    RasterizePoints, bands_to_points, decode_points, encode_points, is_points_file,
+    point_hierarchy, points_info, rasterize_points, verify_points,
+};
 pub use quant::ErrorBound;
 pub use source::RangeSource;
+pub use terrain::{
+    CellsRequest, FileCells, MeshRequest, Select, TerrainLevel, TerrainReport, TerrainRequest,
+    file_cells, mesh_file, mesh_raster, write_terrain,
+};
 
 /// Internals for the crate's own tests, benches and examples (the `internals` feature):
 /// no stability promise.

@@ -3,7 +3,7 @@
 //! The paper's cluster hierarchy as tiles: each level's sites cut the data's convex hull into
 //! convex cells (their Voronoi polygons), and each cell carries the residual of the samples
 //! nearest to its site, `L_j = {(τ, f̃, ε)}`. Everything here is a pure function of points;
-//! rasters and `.vtz` files are the codec's business (`codec::cells`), pictures are
+//! rasters and `.vtz` files are the terrain room's business (`terrain::cells`), pictures are
 //! `viz::cells`.
 //!
 //! * [`voronoi_cells`]: the cells and their residual statistics.

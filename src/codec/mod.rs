@@ -2,16 +2,12 @@
 //! encoding a raster into `.vtz` bytes and decoding them back; the public API re-exports
 //! what is here.
 
-pub mod cells;
 mod decode;
 mod encode;
-pub mod mesh;
 mod options;
-pub mod points;
 mod rate;
 mod resample;
 mod surface;
-pub mod terrain;
 mod tiles;
 mod verify;
 
@@ -19,7 +15,7 @@ pub use encode::EncodeReport;
 pub use options::{DecodeOptions, EncodeOptions, Scale, SectionChoice};
 pub use surface::Surface;
 pub use tiles::{DEFAULT_TILE, tile_count};
-pub use verify::{Verified, verify_points};
+pub use verify::Verified;
 
 use crate::container::tiled::{
     TiledReader, VERSION_CLOUD, VERSION_HEADS, VERSION_TILED, peek_version,

@@ -55,82 +55,17 @@ pub fn check_encode_options(a: &encode::Args) -> Result<()> {
     Ok(())
 }
 
-/// A raster and its `--band` rasters as one point set: a point per sample valid in every
-/// band, at the sample's centre (CRS units with a georeference, else column/row), one value
-/// column per raster named by its file stem.
+/// A raster and its `--band` rasters as one point set ([`vtz::bands_to_points`]).
 fn bands_as_points(a: &encode::Args, ui: &Ui) -> Result<PointSet> {
     let mut files = vec![a.input.clone()];
     files.extend(a.band.iter().cloned());
     let format = common::parse_format(a.format.as_deref())?;
-    let mut rasters = Vec::new();
-    for f in &files {
-        let r = common::read_raster(f, format, &a.raster).map_err(|e| e.context(f.display()))?;
-        rasters.push(r);
+    let mut bands = Vec::new();
+    for f in files {
+        let r = common::read_raster(&f, format, &a.raster).map_err(|e| e.context(f.display()))?;
+        bands.push((f, r));
     }
-    let first = &rasters[0];
-    for (r, f) in rasters.iter().zip(&files).skip(1) {
-        if (r.width, r.height) != (first.width, first.height) {
-            return Err(Error::invalid(format!(
-                "{} is {}x{}, {} is {}x{}: bands must have one grid",
-                f.display(),
-                r.width,
-                r.height,
-                files[0].display(),
-                first.width,
-                first.height
-            )));
-        }
-    }
-    let mut names: Vec<String> = files
-        .iter()
-        .map(|f| {
-            f.file_stem()
-                .map_or("band".into(), |s| s.to_string_lossy().into_owned())
-        })
-        .collect();
-    for i in 1..names.len() {
-        if names[..i].contains(&names[i]) {
-            names[i] = format!("{}_{}", names[i], i + 1);
-        }
-    }
-    let (w, h) = (first.width, first.height);
-    let mut p = PointSet {
-        names,
-        values: vec![Vec::new(); rasters.len()],
-        ..Default::default()
-    };
-    let g = first.georef.clone();
-    let mut dropped = 0usize;
-    for i in 0..w * h {
-        if !rasters.iter().all(|r| r.is_valid(i)) {
-            dropped += rasters.iter().any(|r| r.is_valid(i)) as usize;
-            continue;
-        }
-        let (col, row) = ((i % w) as f64, (i / w) as f64);
-        let (x, y) = match &g {
-            Some(g) => {
-                let half = if g.raster_type == vtz::RasterType::Area {
-                    0.5
-                } else {
-                    0.0
-                };
-                (
-                    g.origin[0] + (col + half) * g.pixel_size[0],
-                    g.origin[1] - (row + half) * g.pixel_size[1],
-                )
-            }
-            None => (col, -row),
-        };
-        p.x.push(x);
-        p.y.push(y);
-        for (c, r) in rasters.iter().enumerate() {
-            p.values[c].push(r.data[i]);
-        }
-    }
-    if let Some(g) = &g {
-        p.epsg = g.epsg;
-        p.wkt = g.wkt.clone();
-    }
+    let (p, dropped) = vtz::bands_to_points(&bands)?;
     if dropped > 0 {
         ui.say(format!(
             "note: {dropped} samples valid in some bands but not all are left out (a point set holds every column at every point)"

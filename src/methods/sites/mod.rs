@@ -7,9 +7,7 @@
 //! a decoder will, checks the bound on every valid sample, and adds the violators as a last
 //! level until none is left (closed loop).
 
-pub(crate) mod points;
-pub(crate) mod scattered;
-pub(crate) mod select;
+mod select;
 
 use crate::container::Header;
 use crate::container::bytes::{ByteReader, PutLe};
@@ -20,9 +18,12 @@ use crate::model::{Raster, SampleType};
 pub(crate) use method::Sibson;
 pub use method::SibsonOptions;
 pub use select::Norm;
+// The narrow API for the applications outside the registry (the point sets' scattered
+// selection and level layout, the terrain pyramid's ordering of sites): the greedy
+// selection on a grid, its convex hull, the level sizes.
+pub(crate) use select::{Samples, SelectParams, convex_hull, select as select_sites};
 mod method;
 use crate::quant::{Errors, code_of, finish_value, height_of};
-use select::{Samples, SelectParams};
 
 const CODING_LEVELS_RANGE: u8 = 0;
 /// Most levels a decoder accepts.
@@ -89,7 +90,7 @@ pub struct DecodedSites {
 }
 
 /// Level sizes: the first holds the hull (at least 16 sites), then each doubles.
-pub(super) fn level_sizes(total: usize, hull: usize) -> Vec<usize> {
+pub(crate) fn level_sizes(total: usize, hull: usize) -> Vec<usize> {
     let mut sizes = Vec::new();
     let mut done = 0;
     let mut next = hull.max(16);

@@ -5,12 +5,20 @@
 //! given: the coarsest power of ten the coordinates are multiples of, so the positions are
 //! lossless), points sharing a grid position form one candidate whose target is the
 //! midrange of their values (their own values are stored explicitly, within the bound), the
-//! greedy selection runs on the candidates (`methods::sites::scattered`), and the sites and
-//! positions are range coded (`methods::sites::points`). The encoder then decodes its bytes
+//! greedy selection runs on the candidates (`scattered`), and the sites and
+//! positions are range coded (`payload`). The encoder then decodes its bytes
 //! exactly as a decoder does, measures every point and column, and adds the violators as a
 //! last level until none is left (closed loop).
 // Columns index several parallel arrays (values, bounds, lattices, surfaces) at once.
 #![allow(clippy::needless_range_loop)]
+
+mod bands;
+mod payload;
+mod scattered;
+mod verify;
+
+pub use bands::bands_to_points;
+pub use verify::verify_points;
 
 use crate::container::points::{
     ColumnHeader, MAX_EXTENT, POINT_SITES, POSITIONS, PointsFile, PointsHeader, VERSION_POINTS,
@@ -18,13 +26,13 @@ use crate::container::points::{
 };
 use crate::container::{Limits, MAGIC, SF_REQUIRED, Section};
 use crate::error::{Error, Result};
-use crate::methods::sites::points::{
+use crate::model::PointSet;
+use crate::quant::{ErrorBound, code_of};
+use payload::{
     DecodedPointSites, Lattice, PointSites, eval_at, hilbert_index, hilbert_order, into_levels,
     read_positions, read_sites, write_positions, write_sites,
 };
-use crate::methods::sites::scattered::{Candidates, ScatterParams, select_scattered};
-use crate::model::PointSet;
-use crate::quant::{ErrorBound, code_of};
+use scattered::{Candidates, ScatterParams, select_scattered};
 
 /// Most closed-loop repair rounds.
 const MAX_REPAIRS: usize = 16;

@@ -6,7 +6,7 @@
 
 use crate::error::{Error, Result};
 use crate::mesh::terrain::{self, GeoGrid, Heights, TileKey, TileParams, TileStats};
-use crate::methods::sites::select::{self, Norm, Samples, SelectParams};
+use crate::methods::sites::{Norm, Samples, SelectParams, select_sites};
 use crate::model::{Raster, RasterType};
 use crate::quant::ErrorBound;
 use rayon::prelude::*;
@@ -283,7 +283,7 @@ pub fn write_terrain(
         step: (bound / 8.0).max((range.1 - range.0) * 1e-9),
         offset: 0.0,
     };
-    let sel = select::select(&samples, &sp, &mut |f| progress(0.4 * f))?;
+    let sel = select_sites(&samples, &sp, &mut |f| progress(0.4 * f))?;
     // suffix[i]: the largest error among sites hull+i.. (non-increasing).
     let mut suffix = vec![0f32; sel.errors.len()];
     let mut m = 0f32;

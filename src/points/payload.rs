@@ -9,11 +9,11 @@
 // Columns index several parallel arrays (values, bounds, lattices, surfaces) at once.
 #![allow(clippy::needless_range_loop)]
 
-use super::level_sizes;
 use crate::container::bytes::{ByteReader, PutLe};
 use crate::entropy::range::{Decoder, Encoder, IntModel, UIntModel};
 use crate::error::{Error, Result};
 use crate::geometry::sibson::{Scratch, Surface};
+use crate::methods::sites::level_sizes;
 use crate::quant::{code_of, height_of};
 use rayon::prelude::*;
 
@@ -126,11 +126,15 @@ pub fn read_positions(
             .ok_or_else(|| Error::corrupt("positions section: position past the grid"))?;
         let (x, y) = hilbert_point(order, d);
         if x >= extent[0] || y >= extent[1] {
-            return Err(Error::corrupt("positions section: position outside the extent"));
+            return Err(Error::corrupt(
+                "positions section: position outside the extent",
+            ));
         }
         let m = reps.decode(&mut dec)?;
         if m >= u32::MAX as u64 {
-            return Err(Error::corrupt("positions section: a multiplicity over 2^32 − 1"));
+            return Err(Error::corrupt(
+                "positions section: a multiplicity over 2^32 − 1",
+            ));
         }
         total = total
             .checked_add(m + 1)
@@ -141,7 +145,9 @@ pub fn read_positions(
         next = d + 1;
     }
     if total != points {
-        return Err(Error::corrupt("positions section: fewer points than the header's"));
+        return Err(Error::corrupt(
+            "positions section: fewer points than the header's",
+        ));
     }
     dec.finish()?;
     Ok((pos, mult))
@@ -313,7 +319,9 @@ pub fn read_sites(
     }
     let nlev = r.u32("level count")?;
     if nlev > MAX_POINT_LEVELS {
-        return Err(r.corrupt(format!("{nlev} levels is over the limit of {MAX_POINT_LEVELS}")));
+        return Err(r.corrupt(format!(
+            "{nlev} levels is over the limit of {MAX_POINT_LEVELS}"
+        )));
     }
     let mut lens = Vec::new();
     let mut total = 0u64;
@@ -488,10 +496,14 @@ mod tests {
     fn positions_round_trip() {
         let extent = [1000, 700];
         let order = hilbert_order(extent);
-        let mut pos: Vec<[u32; 2]> = (0..500u32).map(|i| [(i * 37) % 1000, (i * 91) % 700]).collect();
+        let mut pos: Vec<[u32; 2]> = (0..500u32)
+            .map(|i| [(i * 37) % 1000, (i * 91) % 700])
+            .collect();
         pos.sort_by_key(|p| hilbert_index(order, p[0], p[1]));
         pos.dedup();
-        let mult: Vec<u32> = (0..pos.len() as u32).map(|i| 1 + (i % 7 == 0) as u32).collect();
+        let mult: Vec<u32> = (0..pos.len() as u32)
+            .map(|i| 1 + (i % 7 == 0) as u32)
+            .collect();
         let total = mult.iter().map(|&m| m as u64).sum();
         let b = write_positions(&pos, &mult, extent);
         let (p2, m2) = read_positions(&b, pos.len() as u64, total, extent).unwrap();

@@ -5,8 +5,8 @@
 //! the original raster. The geometry is `cells::voronoi_cells`; this file only turns a
 //! raster into its inputs and the result into GeoJSON or a picture.
 
-use super::{DecodeOptions, Decoder, SectionChoice};
 use crate::cells::{self, Cell, GeoJsonOptions, SiteInfo};
+use crate::codec::{DecodeOptions, Decoder, SectionChoice};
 use crate::container::Limits;
 use crate::error::{Error, Result};
 use crate::methods::{Method, Site, StatValue};

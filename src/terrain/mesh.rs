@@ -2,7 +2,7 @@
 //! from any raster (the greedy sites encoder, or the quadtree detail selector), triangulated
 //! by `mesh`.
 
-use super::{DecodeOptions, Decoder, EncodeOptions, Surface, encode};
+use crate::codec::{DecodeOptions, Decoder, EncodeOptions, Surface, encode};
 use crate::error::{Error, Result};
 use crate::mesh::{self, Mesh, MeshOptions, Vertex};
 use crate::methods::Method;

@@ -1,5 +1,5 @@
 //! Greedy Voronoi/Sibson refinement on scattered points: the raster selector's algorithm
-//! (`select`) with buckets of nearby points in place of 8×8 blocks, and t value columns.
+//! (`methods::sites`' greedy selection on a grid) with buckets of nearby points in place of 8×8 blocks, and t value columns.
 //!
 //! Candidates are distinct integer positions (points on the resolution grid; points sharing
 //! a position are one candidate, see [`Candidates`]). From the convex hull, the candidate
@@ -14,6 +14,7 @@
 use crate::error::{Error, Result};
 use crate::geometry::sibson::{Scratch, Surface};
 use crate::geometry::triangulation::{MAX_COORD, incircle};
+use crate::methods::sites::convex_hull;
 use crate::quant::{code_of, height_of};
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -317,7 +318,9 @@ pub fn select_scattered(
     }
     for col in 0..t {
         if !(p.bounds[col] > 0.0 && p.bounds[col].is_finite()) {
-            return Err(Error::invalid("a point set's error bounds must be positive"));
+            return Err(Error::invalid(
+                "a point set's error bounds must be positive",
+            ));
         }
         if !(p.steps[col] > 0.0 && p.steps[col].is_finite() && p.offsets[col].is_finite()) {
             return Err(Error::invalid("height step must be a positive number"));
@@ -356,7 +359,7 @@ pub fn select_scattered(
         b,
     };
     // The hull first, in its counter-clockwise order.
-    let order = super::select::convex_hull(c.pos.clone());
+    let order = convex_hull(c.pos.clone());
     let at: std::collections::HashMap<[i64; 2], usize> =
         order.iter().enumerate().map(|(i, &q)| (q, i)).collect();
     let mut hull: Vec<(usize, u32)> = (0..n as u32)
@@ -439,7 +442,9 @@ mod tests {
     fn random_points_meet_the_bound() {
         let mut s = 12345u64;
         let mut rnd = || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (s >> 33) as i64
         };
         let mut pos = std::collections::BTreeSet::new();
@@ -477,7 +482,10 @@ mod tests {
         for q in [[350, 850], [850, 350], [-150, 350], [350, -150]] {
             pos.push([q[0] + 200, q[1] + 200]);
         }
-        let z = pos.iter().map(|q| ((q[0] * 7 + q[1] * 3) % 11) as f64).collect();
+        let z = pos
+            .iter()
+            .map(|q| ((q[0] * 7 + q[1] * 3) % 11) as f64)
+            .collect();
         run(pos, z, 0.05);
     }
 }
