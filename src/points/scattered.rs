@@ -440,13 +440,8 @@ mod tests {
 
     #[test]
     fn random_points_meet_the_bound() {
-        let mut s = 12345u64;
-        let mut rnd = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 33) as i64
-        };
+        let mut rng = crate::testutil::Rng(12345);
+        let mut rnd = || (rng.next() >> 33) as i64;
         let mut pos = std::collections::BTreeSet::new();
         while pos.len() < 3000 {
             pos.insert([rnd() % 5000, rnd() % 3000]);
