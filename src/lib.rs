@@ -40,6 +40,7 @@ pub mod metrics;
 mod model;
 mod predict;
 mod quant;
+pub mod rd;
 pub mod source;
 pub mod viz;
 #[cfg(feature = "web")]

@@ -14,6 +14,7 @@ mod surface;
 pub mod terrain;
 mod tiles;
 mod verify;
+mod write;
 
 pub use encode::EncodeReport;
 pub use options::{DecodeOptions, EncodeOptions, Scale, SectionChoice};
