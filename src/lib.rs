@@ -41,6 +41,7 @@ mod model;
 mod points;
 mod predict;
 mod quant;
+pub mod rd;
 pub mod source;
 mod terrain;
 pub mod viz;

@@ -302,16 +302,6 @@ fn bytes_per_sample(t: SampleType) -> usize {
     }
 }
 
-/// GDAL's geotransform of a georeference (always of pixel (0, 0)'s corner).
-fn geotransform(g: &Georef) -> [f64; 6] {
-    let (mut x0, mut y0) = (g.origin[0], g.origin[1]);
-    if g.raster_type == RasterType::Point {
-        x0 -= g.pixel_size[0] / 2.0;
-        y0 += g.pixel_size[1] / 2.0;
-    }
-    [x0, g.pixel_size[0], 0.0, y0, 0.0, -g.pixel_size[1]]
-}
-
 fn open(reader: Box<dyn ReadSeek>, lim: Option<&VtzLimits>) -> vtz::Result<Box<VtzFile>> {
     handle(Decoder::with_limits(reader, limits(lim))?)
 }
@@ -707,7 +697,7 @@ pub unsafe extern "C" fn vtz_get_info(file: *const VtzFile, out: *mut VtzInfo) -
         }
         if let Some(g) = &i.georef {
             v.has_geotransform = 1;
-            v.geotransform = geotransform(g);
+            v.geotransform = g.geotransform();
             v.pixel_is_point = i32::from(g.raster_type == RasterType::Point);
             v.epsg = g.epsg.unwrap_or(0);
         }

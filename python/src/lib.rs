@@ -420,12 +420,8 @@ fn decode<'py>(
 /// of pixel corners (`a, b, c, d, e, f` in affine's order), the EPSG code and the WKT.
 fn georef_dict<'py>(py: Python<'py>, g: &Georef) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    let (mut x0, mut y0) = (g.origin[0], g.origin[1]);
-    if g.raster_type == RasterType::Point {
-        x0 -= 0.5 * g.pixel_size[0];
-        y0 += 0.5 * g.pixel_size[1];
-    }
-    let t = PyTuple::new(py, [g.pixel_size[0], 0.0, x0, 0.0, -g.pixel_size[1], y0])?;
+    let [x0, dx, rot_row, y0, rot_col, ndy] = g.geotransform();
+    let t = PyTuple::new(py, [dx, rot_row, x0, rot_col, ndy, y0])?;
     d.set_item("transform", t)?;
     d.set_item("epsg", g.epsg)?;
     d.set_item("wkt", g.wkt.clone())?;

@@ -10,6 +10,7 @@ mod resample;
 mod surface;
 mod tiles;
 mod verify;
+mod write;
 
 pub use encode::EncodeReport;
 pub use options::{DecodeOptions, EncodeOptions, Scale, SectionChoice};

@@ -197,8 +197,9 @@ pub(crate) fn scaled_georef(g: &Georef, s: Scale) -> Georef {
     let mut out = g.clone();
     out.pixel_size = [f(g.pixel_size[0]), f(g.pixel_size[1])];
     if g.raster_type == RasterType::Point {
-        out.origin[0] = g.origin[0] - 0.5 * g.pixel_size[0] + 0.5 * out.pixel_size[0];
-        out.origin[1] = g.origin[1] + 0.5 * g.pixel_size[1] - 0.5 * out.pixel_size[1];
+        let gt = g.geotransform();
+        out.origin[0] = gt[0] + 0.5 * out.pixel_size[0];
+        out.origin[1] = gt[3] - 0.5 * out.pixel_size[1];
     }
     out
 }

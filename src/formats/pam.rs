@@ -26,25 +26,11 @@ use std::borrow::Cow;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-/// GDAL's geotransform of a north-up georef: `[x0, dx, 0, y0, 0, -dy]` with (x0, y0) the
-/// upper-left corner of pixel (0, 0).
-pub(crate) fn geotransform(g: &Georef) -> [f64; 6] {
-    let [dx, dy] = g.pixel_size;
-    let [x, y] = match g.raster_type {
-        RasterType::Area => g.origin,
-        RasterType::Point => [g.origin[0] - 0.5 * dx, g.origin[1] + 0.5 * dy],
-    };
-    [x, dx, 0.0, y, 0.0, -dy]
-}
-
 /// The six lines of a world file. Its reference point is the centre of the upper-left pixel
 /// (a point raster's own origin, so that one is written exactly as vtz holds it).
 pub(crate) fn world_file(g: &Georef) -> Vec<u8> {
     let [dx, dy] = g.pixel_size;
-    let [cx, cy] = match g.raster_type {
-        RasterType::Point => g.origin,
-        RasterType::Area => [g.origin[0] + 0.5 * dx, g.origin[1] - 0.5 * dy],
-    };
+    let [cx, cy] = g.sample_centre(0.0, 0.0);
     // `{}` prints the shortest text that reads back to the same f64, never in exponent form
     // (which some world-file readers do not take).
     format!("{dx}\n0\n0\n{}\n{cx}\n{cy}\n", -dy).into_bytes()
@@ -159,7 +145,7 @@ pub(crate) fn aux_xml(p: &Pam) -> Option<Vec<u8>> {
         if let Some(srs) = crs::crs_user_input(g) {
             let _ = writeln!(x, "  <SRS>{}</SRS>", esc(&srs));
         }
-        let gt = geotransform(g).map(num);
+        let gt = g.geotransform().map(num);
         let _ = writeln!(x, "  <GeoTransform>{}</GeoTransform>", gt.join(", "));
     }
     write_metadata(&mut x, "  ", &meta.dataset);
@@ -517,7 +503,7 @@ pub(crate) fn envi_header(
         let _ = writeln!(h, "data ignore value = {nd}");
     }
     if let Some(g) = georef {
-        let [x0, dx, _, y0, _, ndy] = geotransform(g);
+        let [x0, dx, _, y0, _, ndy] = g.geotransform();
         // Reference pixel (1, 1) in ENVI's 1-based pixel coordinates is the upper-left
         // corner of the first pixel, which is GDAL's geotransform origin.
         let _ = writeln!(
@@ -643,10 +629,10 @@ mod tests {
     fn geotransform_is_corner_based() {
         let g = utm();
         assert_eq!(
-            geotransform(&g),
+            g.geotransform(),
             [376313.6554542635, 30.0, 0.0, 3807917.8276283755, 0.0, -30.0]
         );
-        let gt = geotransform(&kauai());
+        let gt = kauai().geotransform();
         let half = 0.5 / 1200.0;
         assert_eq!(
             gt,
@@ -749,7 +735,7 @@ mod tests {
         .unwrap();
         let xml = String::from_utf8(xml).unwrap();
         let wkt = esc(crs::wkt_of_epsg(4326).unwrap());
-        let gt = geotransform(&g).map(num).join(", ");
+        let gt = g.geotransform().map(num).join(", ");
         let want = format!(
             "<PAMDataset>\n  <SRS>{wkt}</SRS>\n  <GeoTransform>{gt}</GeoTransform>\n  \
              <Metadata>\n    <MDI key=\"AREA_OR_POINT\">Point</MDI>\n    \
@@ -771,7 +757,7 @@ mod tests {
             .next()
             .unwrap();
         let back: Vec<f64> = gt_text.split(", ").map(|t| t.parse().unwrap()).collect();
-        assert_eq!(back, geotransform(&g));
+        assert_eq!(back, g.geotransform());
     }
 
     #[test]

@@ -11,7 +11,7 @@ pub mod terrain;
 
 use crate::error::{Error, Result};
 use crate::geometry::triangulation::{MAX_COORD, Triangulation};
-use crate::model::{Georef, RasterType};
+use crate::model::Georef;
 
 /// A triangle mesh: positions, counter-clockwise triangles seen from above (+z), and
 /// optional per-vertex attributes.
@@ -119,17 +119,8 @@ pub fn triangulate(
     let place = |col: f64, row: f64, z: f64| -> [f64; 3] {
         match (opts.georeferenced, georef) {
             (true, Some(g)) => {
-                // Sample centres: an area raster's origin is the corner of pixel (0, 0).
-                let c = if g.raster_type == RasterType::Area {
-                    0.5
-                } else {
-                    0.0
-                };
-                [
-                    g.origin[0] + (col + c) * g.pixel_size[0],
-                    g.origin[1] - (row + c) * g.pixel_size[1],
-                    z * opts.z_scale,
-                ]
+                let [x, y] = g.sample_centre(col, row);
+                [x, y, z * opts.z_scale]
             }
             _ => [
                 col * spacing[0],

@@ -190,6 +190,34 @@ impl Georef {
         g.origin[1] -= y0 as f64 * self.pixel_size[1];
         g
     }
+
+    /// GDAL's geotransform: `[x0, dx, 0, y0, 0, -dy]`, (x0, y0) the upper-left *corner* of
+    /// pixel (0, 0) in model coordinates (a [`RasterType::Point`] origin moved by half a
+    /// pixel), dx and dy the [`Georef::pixel_size`]; a model position is
+    /// `(x0 + col·dx, y0 − row·dy)` for a fractional pixel position (col, row).
+    pub fn geotransform(&self) -> [f64; 6] {
+        let [dx, dy] = self.pixel_size;
+        let [x, y] = match self.raster_type {
+            RasterType::Area => self.origin,
+            RasterType::Point => [self.origin[0] - 0.5 * dx, self.origin[1] + 0.5 * dy],
+        };
+        [x, dx, 0.0, y, 0.0, -dy]
+    }
+
+    /// Model coordinates (x east, y north) of the centre of the sample at column `col`, row
+    /// `row` (fractional positions between centres too): `origin + (col + c)·dx`,
+    /// `origin − (row + c)·dy`, c = ½ for [`RasterType::Area`] (its origin is a corner), 0 for
+    /// [`RasterType::Point`].
+    pub fn sample_centre(&self, col: f64, row: f64) -> [f64; 2] {
+        let c = match self.raster_type {
+            RasterType::Area => 0.5,
+            RasterType::Point => 0.0,
+        };
+        [
+            self.origin[0] + (col + c) * self.pixel_size[0],
+            self.origin[1] - (row + c) * self.pixel_size[1],
+        ]
+    }
 }
 
 /// How integer codes map to physical values: `value = offset + scale * code`

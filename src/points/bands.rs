@@ -2,7 +2,7 @@
 //! per raster.
 
 use crate::error::{Error, Result};
-use crate::model::{PointSet, Raster, RasterType};
+use crate::model::{PointSet, Raster};
 use std::path::PathBuf;
 
 /// A raster and its bands, each with the file it came from, as one point set: a point per
@@ -58,19 +58,9 @@ pub fn bands_to_points(bands: &[(PathBuf, Raster)]) -> Result<(PointSet, usize)>
             continue;
         }
         let (col, row) = ((i % w) as f64, (i / w) as f64);
-        let (x, y) = match &g {
-            Some(g) => {
-                let half = if g.raster_type == RasterType::Area {
-                    0.5
-                } else {
-                    0.0
-                };
-                (
-                    g.origin[0] + (col + half) * g.pixel_size[0],
-                    g.origin[1] - (row + half) * g.pixel_size[1],
-                )
-            }
-            None => (col, -row),
+        let [x, y] = match &g {
+            Some(g) => g.sample_centre(col, row),
+            None => [col, -row],
         };
         p.x.push(x);
         p.y.push(y);

@@ -10,7 +10,7 @@ use crate::codec::{DecodeOptions, Decoder, SectionChoice};
 use crate::container::Limits;
 use crate::error::{Error, Result};
 use crate::methods::{Method, Site, StatValue};
-use crate::model::{Georef, Raster, RasterType};
+use crate::model::{Georef, Raster};
 use serde_json::{Map, json};
 use std::io::{Read, Seek};
 
@@ -165,20 +165,10 @@ struct Frame {
 impl Frame {
     fn new(g: Option<&Georef>) -> Frame {
         match g {
-            Some(g) => {
-                let half = if g.raster_type == RasterType::Area {
-                    0.5
-                } else {
-                    0.0
-                };
-                Frame {
-                    step: g.pixel_size,
-                    origin: Some([
-                        g.origin[0] + half * g.pixel_size[0],
-                        g.origin[1] - half * g.pixel_size[1],
-                    ]),
-                }
-            }
+            Some(g) => Frame {
+                step: g.pixel_size,
+                origin: Some(g.sample_centre(0.0, 0.0)),
+            },
             None => Frame {
                 step: [1.0, 1.0],
                 origin: None,

@@ -7,7 +7,7 @@
 use crate::error::{Error, Result};
 use crate::mesh::terrain::{self, GeoGrid, Heights, TileKey, TileParams, TileStats};
 use crate::methods::sites::{Norm, Samples, SelectParams, select_sites};
-use crate::model::{Raster, RasterType};
+use crate::model::Raster;
 use crate::quant::ErrorBound;
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -138,18 +138,14 @@ fn geo_grid(r: &Raster) -> Result<GeoGrid<'_>> {
     if r.width < 2 || r.height < 2 {
         return Err(Error::invalid("terrain tiles need at least 2 × 2 samples"));
     }
-    let c = if g.raster_type == RasterType::Area {
-        0.5
-    } else {
-        0.0
-    };
+    let [lon0, lat0] = g.sample_centre(0.0, 0.0);
     let grid = GeoGrid {
         width: r.width,
         height: r.height,
         data: &r.data,
         mask: r.mask.as_deref(),
-        lon0: g.origin[0] + c * g.pixel_size[0],
-        lat0: g.origin[1] - c * g.pixel_size[1],
+        lon0,
+        lat0,
         dlon: g.pixel_size[0],
         dlat: g.pixel_size[1],
     };

@@ -12,7 +12,7 @@
 //! error scale in plain words.
 
 use crate::error::{Error, Result};
-use crate::model::{Georef, Raster, RasterType};
+use crate::model::{Georef, Raster};
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ExtendedColorType, ImageEncoder, Rgb, RgbImage};
 
@@ -322,13 +322,9 @@ fn row_spacing(r: &Raster) -> Vec<(f64, f64)> {
     if !is_geographic(g) {
         return vec![(px, py); r.height];
     }
-    let centre = match g.raster_type {
-        RasterType::Area => 0.5,
-        RasterType::Point => 0.0,
-    };
     (0..r.height)
         .map(|y| {
-            let lat = g.origin[1] - (y as f64 + centre) * g.pixel_size[1];
+            let lat = g.sample_centre(0.0, y as f64)[1];
             let c = lat.to_radians().cos().clamp(0.01, 1.0);
             (px * METRES_PER_DEGREE * c, py * METRES_PER_DEGREE)
         })
@@ -608,7 +604,7 @@ impl Legend {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::SampleType;
+    use crate::model::{RasterType, SampleType};
 
     fn raster(w: usize, h: usize, f: impl Fn(usize, usize) -> f64) -> Raster {
         let data = (0..w * h).map(|i| f(i % w, i / w)).collect();

@@ -147,11 +147,8 @@ impl<'a> Source<'a> {
 
     /// Model coordinates (the source CRS) of the pixel-centre coordinates (col, row).
     fn model_of(&self, col: f64, row: f64) -> (f64, f64) {
-        let g = &self.g;
-        (
-            g.origin[0] + (col - self.centre) * g.pixel_size[0],
-            g.origin[1] - (row - self.centre) * g.pixel_size[1],
-        )
+        let [x, y] = self.g.sample_centre(col, row);
+        (x, y)
     }
 
     /// Pixel-centre coordinates of a model point.

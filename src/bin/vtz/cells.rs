@@ -6,6 +6,7 @@ use std::time::Instant;
 use vtz::{CellsRequest, Error, Limits, Result};
 
 #[derive(clap::Args)]
+#[command(mut_arg("json", |a| a.help("Print a JSON summary (cells, level, sites, time) on stdout")))]
 pub struct Args {
     /// Input .vtz file with a sites section (untiled).
     pub input: PathBuf,
@@ -20,12 +21,10 @@ pub struct Args {
     /// error to the original is at most ε + the file's bound).
     #[arg(long, value_name = "ORIGINAL")]
     pub source: Option<PathBuf>,
-    /// Print a JSON summary (cells, level, sites, time) on stdout.
-    #[arg(long)]
-    pub json: bool,
-    /// Replace an existing output file.
-    #[arg(short, long)]
-    pub force: bool,
+    #[command(flatten)]
+    pub json: common::Json,
+    #[command(flatten)]
+    pub force: common::Force,
     #[command(flatten)]
     pub raster: RasterOpts,
 }
@@ -53,7 +52,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
             )));
         }
     };
-    common::check_output(&a.input, &a.output, a.force)?;
+    common::check_output(&a.input, &a.output, a.force.force)?;
     let start = Instant::now();
     let source = match &a.source {
         Some(p) => Some(ui.busy("reading the source", || {
@@ -91,11 +90,11 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         }
         Kind::Png => ui.busy("drawing", || cells.png())?,
     };
-    vtz::formats::write_file(&a.output, out, a.force)?;
+    vtz::formats::write_file(&a.output, out, a.force.force)?;
     let secs = start.elapsed().as_secs_f64();
     let n = cells.cells.iter().filter(|c| c.polygon.len() >= 3).count();
     let worst = cells.cells.iter().map(|c| c.eps_max).fold(0.0, f64::max);
-    if a.json {
+    if a.json.json {
         let v = serde_json::json!({
             "output": a.output.display().to_string(),
             "cells": n,
@@ -181,11 +180,11 @@ fn points_cells(a: &Args, bytes: &[u8], start: Instant, ui: &Ui) -> Result<()> {
     } else {
         vtz::cells::geojson(&cells, &infos, &opts)?
     };
-    vtz::formats::write_file(&a.output, out, a.force)?;
+    vtz::formats::write_file(&a.output, out, a.force.force)?;
     let n = cells.iter().filter(|c| c.polygon.len() >= 3).count();
     let worst = cells.iter().map(|c| c.eps_max).fold(0.0, f64::max);
     let secs = start.elapsed().as_secs_f64();
-    if a.json {
+    if a.json.json {
         let v = serde_json::json!({
             "output": a.output.display().to_string(), "cells": n, "level": level,
             "levels": h.levels, "sites": h.sites.len(), "samples": h.samples.len(),

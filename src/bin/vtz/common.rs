@@ -99,10 +99,6 @@ fn eta(state: &indicatif::ProgressState, w: &mut dyn std::fmt::Write) {
 }
 
 impl Ui {
-    /// Run `f` with a progress bar fed by its callback (fraction 0..1): percentage, elapsed
-    /// time and ETA, drawn from the first second on a terminal (ticking even while the work
-    /// reports nothing), never moving backwards, left drawn at 100 % when the work reports
-    /// its end (1.0); hidden with --quiet.
     /// [`Ui::progress`] for work done tile by tile: the bar counts `tiles` (a plain bar
     /// when there is one).
     pub fn progress_tiles<T>(
@@ -111,41 +107,38 @@ impl Ui {
         tiles: u64,
         f: impl FnOnce(&(dyn Fn(f64) + Sync)) -> T,
     ) -> T {
-        if self.quiet || tiles <= 1 {
+        if tiles <= 1 {
             return self.progress(msg, f);
         }
-        let pb = ProgressBar::with_draw_target(Some(tiles), ProgressDrawTarget::hidden());
-        pb.set_style(
-            ProgressStyle::with_template(
-                "{msg} [{bar:30}] {pos}/{len} tiles {elapsed_precise} ETA {vtz_eta}",
-            )
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .with_key("vtz_eta", eta)
-            .progress_chars("=> "),
-        );
-        pb.set_message(msg.to_string());
-        let shown = ShowAfterASecond::new(&pb);
-        let high = AtomicU64::new(0);
-        let out = f(&|frac: f64| {
-            let pos = (frac.clamp(0.0, 1.0) * tiles as f64).round() as u64;
-            let prev = high.fetch_max(pos, Ordering::Relaxed);
-            if pos > prev {
-                pb.set_position(pos);
-            }
-        });
-        shown.end(high.load(Ordering::Relaxed) == tiles);
-        out
+        self.bar(msg, tiles, "{pos}/{len} tiles", true, f)
     }
 
+    /// Run `f` with a progress bar fed by its callback (fraction 0..1): percentage, elapsed
+    /// time and ETA, drawn from the first second on a terminal (ticking even while the work
+    /// reports nothing), never moving backwards, left drawn at 100 % when the work reports
+    /// its end (1.0); hidden with --quiet.
     pub fn progress<T>(&self, msg: &str, f: impl FnOnce(&(dyn Fn(f64) + Sync)) -> T) -> T {
+        self.bar(msg, 1000, "{percent:>3}%", false, f)
+    }
+
+    /// The one progress bar: `len` steps (a fraction rounded to the nearest step with
+    /// `round`, else down), `count` (indicatif's template keys) after the bar.
+    fn bar<T>(
+        &self,
+        msg: &str,
+        len: u64,
+        count: &str,
+        round: bool,
+        f: impl FnOnce(&(dyn Fn(f64) + Sync)) -> T,
+    ) -> T {
         if self.quiet {
             return f(&|_| {});
         }
-        let pb = ProgressBar::with_draw_target(Some(1000), ProgressDrawTarget::hidden());
+        let pb = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::hidden());
         pb.set_style(
-            ProgressStyle::with_template(
-                "{msg} [{bar:30}] {percent:>3}% {elapsed_precise} ETA {vtz_eta}",
-            )
+            ProgressStyle::with_template(&format!(
+                "{{msg}} [{{bar:30}}] {count} {{elapsed_precise}} ETA {{vtz_eta}}"
+            ))
             .unwrap_or_else(|_| ProgressStyle::default_bar())
             .with_key("vtz_eta", eta)
             .progress_chars("=> "),
@@ -155,15 +148,76 @@ impl Ui {
         let high = AtomicU64::new(0);
         let out = f(&|frac: f64| {
             // Monotonic: a later, lower estimate never moves the bar back.
-            let pos = (frac.clamp(0.0, 1.0) * 1000.0) as u64;
+            let pos = frac.clamp(0.0, 1.0) * len as f64;
+            let pos = if round { pos.round() } else { pos } as u64;
             let prev = high.fetch_max(pos, Ordering::Relaxed);
             if pos > prev {
                 pb.set_position(pos);
             }
         });
-        shown.end(high.load(Ordering::Relaxed) == 1000);
+        shown.end(high.load(Ordering::Relaxed) == len);
         out
     }
+}
+
+/// `--force`: replace an existing output (a command whose outputs differ says which in
+/// its help, `#[command(mut_arg("force", ...))]`).
+#[derive(clap::Args, Clone, Copy, Debug, Default)]
+pub struct Force {
+    /// Replace an existing output file.
+    #[arg(short, long)]
+    pub force: bool,
+}
+
+/// `--json`: the result as JSON on stdout (a command's own help may say more of it).
+#[derive(clap::Args, Clone, Copy, Debug, Default)]
+pub struct Json {
+    /// Print the result as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `--format`: the input raster's format, when its extension does not tell.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct InputFormat {
+    /// Input format, when the extension does not tell (tif, png, terrain-rgb, exr, hgt, asc,
+    /// f32).
+    #[arg(long, value_name = "FMT")]
+    pub format: Option<String>,
+}
+
+impl InputFormat {
+    /// The format named, if any (an unknown name is a usage error).
+    pub fn get(&self) -> Result<Option<Format>> {
+        parse_format(self.format.as_deref())
+    }
+}
+
+/// `--max-error`: the bound, E data units or E% of the value range (each command's help says
+/// what it bounds).
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct Bound {
+    /// Every sample within E data units, or E% of the value range (e.g. 1%).
+    #[arg(long, value_name = "E")]
+    pub max_error: Option<String>,
+}
+
+impl Bound {
+    /// The bound given, if any (a bad one is a usage error naming `--max-error`).
+    pub fn get(&self) -> Result<Option<vtz::ErrorBound>> {
+        self.max_error
+            .as_deref()
+            .map(|s| bound("--max-error", s))
+            .transpose()
+    }
+}
+
+/// `--threads`: the threads of the work (0: all cores); outputs do not depend on it.
+#[derive(clap::Args, Clone, Copy, Debug, Default)]
+pub struct Threads {
+    /// Threads (default: all cores); the output is the same for any count.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub threads: usize,
 }
 
 /// Options shared by every command that reads or writes rasters.

@@ -6,21 +6,23 @@ use vtz::Result;
 use vtz::metrics::num;
 
 #[derive(clap::Args)]
+#[command(
+    mut_arg("json", |a| a.help("Print JSON on stdout instead of text")),
+    mut_arg("force", |a| a.help("Replace an existing --png file"))
+)]
 pub struct Args {
     /// Reference raster (or .vtz).
     pub a: PathBuf,
     /// Raster to compare with it (or .vtz).
     pub b: PathBuf,
-    /// Print JSON on stdout instead of text.
-    #[arg(long)]
-    pub json: bool,
+    #[command(flatten)]
+    pub json: common::Json,
     /// Also write a PNG map of B − A (blue negative, white 0, red positive, scaled to the
     /// max error) with a colour bar.
     #[arg(long, value_name = "FILE")]
     pub png: Option<PathBuf>,
-    /// Replace an existing --png file.
-    #[arg(short, long)]
-    pub force: bool,
+    #[command(flatten)]
+    pub force: common::Force,
     #[command(flatten)]
     pub raster: RasterOpts,
 }
@@ -28,14 +30,14 @@ pub struct Args {
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
     if let Some(png) = &a.png {
         common::check_distinct(&a.a, png)?;
-        common::check_output(&a.b, png, a.force)?;
+        common::check_output(&a.b, png, a.force.force)?;
     }
     let ra = ui.busy("reading", || common::read_raster(&a.a, None, &a.raster))?;
     let rb = ui.busy("reading", || common::read_raster(&a.b, None, &a.raster))?;
     let c = vtz::metrics::compare(&ra, &rb)?;
     if let Some(png) = &a.png {
         let map = ui.busy("drawing", || vtz::viz::hillshade::error_map(&ra, &rb, None))?;
-        vtz::formats::write_file(png, map, a.force)?;
+        vtz::formats::write_file(png, map, a.force.force)?;
         ui.say(format!(
             "{}: error map, full colour at ±{}",
             png.display(),
@@ -49,7 +51,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     };
     let bytes = vtz_size(&a.b).or_else(|| vtz_size(&a.a));
     let bps = bytes.map(|n| vtz::metrics::bits_per_sample(n, ra.len()));
-    if a.json {
+    if a.json.json {
         let mut j = serde_json::to_value(&c).unwrap_or_default();
         j["bits_per_sample"] = serde_json::json!(bps);
         j["vtz_bytes"] = serde_json::json!(bytes);

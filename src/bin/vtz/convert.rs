@@ -16,9 +16,8 @@ pub struct Args {
     /// Output format, when the extension does not tell.
     #[arg(long, value_name = "FMT")]
     pub to: Option<String>,
-    /// Replace an existing output file.
-    #[arg(short, long)]
-    pub force: bool,
+    #[command(flatten)]
+    pub force: common::Force,
     #[command(flatten)]
     pub raster: RasterOpts,
     #[command(flatten)]
@@ -31,9 +30,9 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     if to.is_none() {
         vtz::formats::Format::from_path(&a.output)?;
     }
-    common::check_output(&a.input, &a.output, a.force)?;
+    common::check_output(&a.input, &a.output, a.force.force)?;
     let raster = ui.busy("reading", || common::read_raster(&a.input, from, &a.raster))?;
-    let wo = common::write_options(to, a.force, &a.raster, &a.output_opts);
+    let wo = common::write_options(to, a.force.force, &a.raster, &a.output_opts);
     ui.busy("writing", || vtz::write_path(&raster, &a.output, &wo))?;
     ui.say(format!(
         "{} → {}: {}x{} {}",

@@ -40,9 +40,8 @@ pub struct Args {
     /// at that tile's nearest lattice point.
     #[arg(long, value_name = "K", conflicts_with = "scale")]
     pub overview: Option<u32>,
-    /// Threads (default: all cores); the output is the same for any count.
-    #[arg(long, value_name = "N", default_value_t = 0)]
-    pub threads: usize,
+    #[command(flatten)]
+    pub threads: common::Threads,
     /// Tiled files: write nodata for a tile that is corrupt (each one reported) and decode
     /// the rest, instead of failing.
     #[arg(long)]
@@ -52,9 +51,8 @@ pub struct Args {
     /// the digital-terrain-model paper) are for comparison and ignore the bound.
     #[arg(long, default_value = "sibson", value_parser = ["sibson", "linear", "basis"])]
     pub surface: String,
-    /// Replace an existing output file.
-    #[arg(short, long)]
-    pub force: bool,
+    #[command(flatten)]
+    pub force: common::Force,
     /// Point sets: write only the kept sites (importance order) with their stored values.
     #[arg(long)]
     pub sites_only: bool,
@@ -91,7 +89,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     if format.is_none() {
         vtz::formats::Format::from_path(&a.output)?;
     }
-    common::check_output(&a.input, &a.output, a.force)?;
+    common::check_output(&a.input, &a.output, a.force.force)?;
     let mut opts = DecodeOptions::default();
     if let Some(s) = a.section.as_deref() {
         opts.section = s.parse()?;
@@ -101,12 +99,12 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     opts.window = a.window.as_deref().map(str::parse).transpose()?;
     opts.scale = a.scale.as_deref().map(str::parse).transpose()?;
     opts.overview = a.overview;
-    opts.threads = a.threads;
-    if a.threads > 0 {
+    opts.threads = a.threads.threads;
+    if a.threads.threads > 0 {
         // The GeoTIFF writer compresses its tiles on rayon's global pool: keep it to the
         // count too (the bytes are the same for any count).
         let _ = rayon::ThreadPoolBuilder::new()
-            .num_threads(a.threads)
+            .num_threads(a.threads.threads)
             .build_global();
     }
     opts.skip_corrupt = a.skip_corrupt;
@@ -133,36 +131,12 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         && opts.overview.is_none()
     {
         // A tiled file to GeoTIFF: band by band into a tiled GeoTIFF, never the whole raster.
-        let (w, h) = (d.info().width as usize, d.info().height as usize);
-        let win = opts.window.unwrap_or(vtz::Window::full(w, h));
-        let mut out = vtz::formats::PendingFile::create(&a.output, a.force)?;
-        let mut writer = None;
-        let mut georef = None;
-        let mut file = Some(out.writer());
-        ui.progress_tiles("decoding", tiles, |p| {
-            d.options(opts.clone()).decode_bands(
-                &mut |band| {
-                    if writer.is_none() {
-                        // The output's georeferencing: the first band's (the window's corner).
-                        georef = band.georef.clone();
-                        writer = Some(vtz::formats::GeoTiffWriter::new(
-                            file.take().expect("the first band"),
-                            win.width,
-                            win.height,
-                            &band,
-                        )?);
-                    }
-                    writer.as_mut().expect("just made").write_rows(&band)
-                },
-                p,
-            )
-        })
-        .map_err(|e| e.context(a.input.display()))?;
-        writer.expect("at least one band").finish()?;
-        out.commit()?;
-        if let Some(aux) = vtz::formats::geotiff_sidecar(&a.output, georef.as_ref()) {
-            vtz::formats::write_file(&aux.path, aux.bytes, true)?;
-        }
+        let win = ui
+            .progress_tiles("decoding", tiles, |p| {
+                d.options(opts.clone())
+                    .decode_to_geotiff(&a.output, a.force.force, p)
+            })
+            .map_err(|e| e.context(a.input.display()))?;
         for s in d.skipped() {
             ui.say(format!(
                 "warning: wrote nodata for {}",
@@ -182,7 +156,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     // One bar for the whole command: the decode's own progress (tile by tile, or stage by
     // stage of an untiled file) fills its first half, the write (one step: the formats
     // write a raster whole) the second.
-    let wo = common::write_options(format, a.force, &a.raster, &a.output_opts);
+    let wo = common::write_options(format, a.force.force, &a.raster, &a.output_opts);
     let raster = ui.progress("decoding", |p| {
         let raster = d
             .options(opts.clone())

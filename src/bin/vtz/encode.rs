@@ -6,6 +6,14 @@ use vtz::metrics::num;
 use vtz::{EncodeOptions, ErrorBound, Result};
 
 #[derive(clap::Args)]
+#[command(
+    mut_arg("max_error", |a| a.help(
+        "Guarantee every sample within E data units, or E% of the value range (e.g. 1%)"
+    )),
+    mut_arg("threads", |a| a.help(
+        "Threads for a tiled encode (default: all cores); the file is the same for any count"
+    ))
+)]
 pub struct Args {
     /// Input raster (.tif, .png, .exr, .hgt, .asc, .f32 + .json), or scattered points
     /// (.xyz .txt .csv .las .laz) encoded as a point set.
@@ -21,11 +29,10 @@ pub struct Args {
     /// `-o s3://…`: the upload of `output` once written, before the summary is printed.
     #[arg(skip)]
     pub staged: Option<Box<common::Staged>>,
-    /// Guarantee every sample within E data units, or E% of the value range (e.g. 1%).
-    #[arg(long, value_name = "E", conflicts_with = "lossless")]
-    pub max_error: Option<String>,
+    #[command(flatten)]
+    pub bound: common::Bound,
     /// Store every sample exactly (the default when no bound is given).
-    #[arg(long, conflicts_with_all = ["sites", "rmse"])]
+    #[arg(long, conflicts_with_all = ["max_error", "sites", "rmse"])]
     pub lossless: bool,
     /// Aim for at most B bits per sample (the smallest bound that fits, by bisection).
     #[arg(long, value_name = "B", conflicts_with_all = ["max_error", "lossless", "sites", "rmse", "size"])]
@@ -65,23 +72,19 @@ pub struct Args {
     /// slower to decode); 7–9 try them all. `vtz info --stats` says which coding a file holds.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=9))]
     pub effort: Option<u8>,
-    /// Input format, when the extension does not tell (tif, png, terrain-rgb, exr, hgt, asc, f32).
-    #[arg(long, value_name = "FMT")]
-    pub format: Option<String>,
-    /// Replace an existing output file.
-    #[arg(short, long)]
-    pub force: bool,
-    /// Print the result as JSON on stdout.
-    #[arg(long)]
-    pub json: bool,
+    #[command(flatten)]
+    pub format: common::InputFormat,
+    #[command(flatten)]
+    pub force: common::Force,
+    #[command(flatten)]
+    pub json: common::Json,
     /// Cut a raster larger than N samples in either direction into tiles of at most N × N
     /// that encode on all cores and decode alone (0 = never). Default: rasters of more than
     /// 4096² samples (whatever their shape) are cut into tiles of about 1024 × 1024 samples
     #[arg(long, value_name = "N")]
     pub tile: Option<u32>,
-    /// Threads for a tiled encode (default: all cores); the file is the same for any count.
-    #[arg(long, value_name = "N", default_value_t = 0)]
-    pub threads: usize,
+    #[command(flatten)]
+    pub threads: common::Threads,
     /// Point sets: the grid step positions snap to, in the CRS's units (default: the
     /// coarsest power of ten the coordinates are multiples of, so positions are lossless).
     #[arg(long, value_name = "R")]
@@ -116,7 +119,7 @@ pub fn stage(a: &mut Args) -> Result<()> {
     else {
         return Ok(());
     };
-    let staged = common::Staged::new(&url, a.force)?;
+    let staged = common::Staged::new(&url, a.force.force)?;
     a.output = Some(staged.local.clone());
     a.shown_output = Some(PathBuf::from(url));
     a.staged = Some(Box::new(staged));
@@ -124,17 +127,13 @@ pub fn stage(a: &mut Args) -> Result<()> {
 }
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
-    let format = common::parse_format(a.format.as_deref())?;
-    let bound = a
-        .max_error
-        .as_deref()
-        .map(|s| common::bound("--max-error", s))
-        .transpose()?;
+    let format = a.format.get()?;
+    let bound = a.bound.get()?;
     let output = a
         .output
         .clone()
         .unwrap_or_else(|| common::default_output(&a.input, "vtz"));
-    common::check_output(&a.input, &output, a.force)?;
+    common::check_output(&a.input, &output, a.force.force)?;
     // Every option is parsed and checked before the (maybe long) read.
     let norm: vtz::Norm = a.norm.parse()?;
     let methods = vtz::Method::parse_list(&a.method)?;
@@ -184,8 +183,8 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     opts.target_bytes = target_bytes;
     opts.effort = a.effort;
     opts.tile = a.tile;
-    opts.threads = a.threads;
-    let mut out = vtz::formats::PendingFile::create(&output, a.force)?;
+    opts.threads = a.threads.threads;
+    let mut out = vtz::formats::PendingFile::create(&output, a.force.force)?;
     let tiles = vtz::tile_count(src.width(), src.height(), &opts);
     let (_, report) = ui.progress_tiles("encoding", tiles, |p| {
         vtz::encode_stream(&mut *src, &opts, out.writer(), &mut |f| p(f))
@@ -212,7 +211,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     // What any file pays whatever its samples: header, directory, checksums,
     // georeferencing and a method's own header (177 bytes for a georeferenced 1 × 1 raster).
     const FRAMING: u64 = 512;
-    if n > raw && !a.json {
+    if n > raw && !a.json.json {
         if n <= raw + FRAMING {
             // Nothing to suggest: no method or bound makes so few samples smaller.
             ui.say(format!(
@@ -239,7 +238,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     };
     let sites = report.stats.as_ref().and_then(|s| s.count("sites"));
     let stat = |k: &str| report.stats.as_ref().and_then(|s| s.get(k).cloned());
-    if a.json {
+    if a.json.json {
         let j = serde_json::json!({
             "input": a.input, "output": a.shown_output.as_ref().unwrap_or(&output), "bytes": n, "samples": samples,
             "tiles": info.tiles.as_ref().map_or(1, |t| t.tiles.len()),

@@ -6,12 +6,12 @@ use vtz::metrics::num;
 use vtz::{Limits, RasterType, Result};
 
 #[derive(clap::Args)]
+#[command(mut_arg("json", |a| a.help("Print JSON on stdout instead of text")))]
 pub struct Args {
     /// Input .vtz file: a path, or a URL (https://…, http://…, s3://bucket/key).
     pub input: PathBuf,
-    /// Print JSON on stdout instead of text.
-    #[arg(long)]
-    pub json: bool,
+    #[command(flatten)]
+    pub json: common::Json,
     /// Also decode the sections' parameters: sites, levels, bits per site, L∞ and RMSE of a
     /// sites section; k, points and factors of an FIS section; levels of a Haar section.
     #[arg(long)]
@@ -91,7 +91,7 @@ pub fn run(a: Args, _ui: &Ui) -> Result<()> {
             })).collect::<Vec<_>>(),
         })
     });
-    if a.json {
+    if a.json.json {
         let mut j = serde_json::json!({
             "file": a.input, "bytes": info.file_bytes, "width": h.width, "height": h.height,
             "samples": samples, "sample_type": h.sample_type.name(),

@@ -18,12 +18,10 @@ pub struct Args {
     /// 3D convex hull, a closed cover).
     #[arg(long, default_value = "heightfield", value_parser = ["heightfield", "hull"])]
     pub cover: String,
-    /// Replace an existing output file.
-    #[arg(short, long)]
-    pub force: bool,
-    /// Print the result as JSON on stdout.
-    #[arg(long)]
-    pub json: bool,
+    #[command(flatten)]
+    pub force: common::Force,
+    #[command(flatten)]
+    pub json: common::Json,
 }
 
 fn is_xyz(p: &Path) -> bool {
@@ -44,7 +42,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         })?)
     };
     let cover: Cover = a.cover.parse()?;
-    common::check_output(&a.rules, &a.output, a.force)?;
+    common::check_output(&a.rules, &a.output, a.force.force)?;
     let text = std::fs::read_to_string(&a.rules)
         .map_err(|e| vtz::Error::io(a.rules.display().to_string(), e))?;
     let start = std::time::Instant::now();
@@ -59,8 +57,8 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     };
     let ms = start.elapsed().as_secs_f64() * 1e3;
     let n = bytes.len();
-    vtz::formats::write_file(&a.output, bytes, a.force)?;
-    if a.json {
+    vtz::formats::write_file(&a.output, bytes, a.force.force)?;
+    if a.json.json {
         outln!(
             "{}",
             serde_json::json!({

@@ -5,19 +5,20 @@ use std::path::PathBuf;
 use vtz::{MeshFormat, MeshRequest, Result, Select};
 
 #[derive(clap::Args)]
+#[command(mut_arg("max_error", |a| a.help(
+    "Greedy sites, then vertices added until every sample is within E data units or E% of the \
+     range of the mesh's triangles (default 1% for rasters; a .vtz's own sites otherwise)"
+)))]
 pub struct Args {
     /// Input: a .vtz (its sites, or its decoded raster) or any raster.
     pub input: PathBuf,
     /// Output mesh: .obj, .ply, .stl or .glb.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Greedy sites, then vertices added until every sample is within E data units or E%
-    /// of the range of the mesh's triangles (default 1% for rasters; a .vtz's own sites
-    /// otherwise).
-    #[arg(long, value_name = "E", conflicts_with = "sites")]
-    pub max_error: Option<String>,
+    #[command(flatten)]
+    pub bound: common::Bound,
     /// The first N sites.
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", conflicts_with = "max_error")]
     pub sites: Option<usize>,
     /// The first K progressive levels of a .vtz's sites.
     #[arg(long, value_name = "K", conflicts_with_all = ["sites", "max_error"])]
@@ -58,23 +59,20 @@ pub struct Args {
     /// decoded raster a selection reads: sibson (the coded one), linear or basis.
     #[arg(long, default_value = "sibson", value_parser = ["sibson", "linear", "basis"])]
     pub surface: String,
-    /// Input raster format, when the extension does not tell.
-    #[arg(long, value_name = "FMT")]
-    pub format: Option<String>,
-    /// Replace an existing output file.
-    #[arg(short, long)]
-    pub force: bool,
-    /// Print the result as JSON on stdout.
-    #[arg(long)]
-    pub json: bool,
+    #[command(flatten)]
+    pub format: common::InputFormat,
+    #[command(flatten)]
+    pub force: common::Force,
+    #[command(flatten)]
+    pub json: common::Json,
     #[command(flatten)]
     pub raster: RasterOpts,
 }
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let out_format = MeshFormat::from_path(&a.output)?;
-    let in_format = common::parse_format(a.format.as_deref())?;
-    common::check_output(&a.input, &a.output, a.force)?;
+    let in_format = a.format.get()?;
+    common::check_output(&a.input, &a.output, a.force.force)?;
     let select = match a.select.as_str() {
         "quadtree" => {
             if !(0.0..=100.0).contains(&a.threshold) {
@@ -90,11 +88,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         _ => Select::Greedy,
     };
     let mut req = MeshRequest::default();
-    req.max_error = a
-        .max_error
-        .as_deref()
-        .map(|s| common::bound("--max-error", s))
-        .transpose()?;
+    req.max_error = a.bound.get()?;
     req.sites = a.sites;
     req.levels = a.level;
     req.select = select;
@@ -129,8 +123,8 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
         .map_err(|e| e.context(a.input.display()))?;
     let bytes = vtz::encode_mesh(&mesh, out_format)?;
     let n = bytes.len();
-    vtz::formats::write_file(&a.output, bytes, a.force)?;
-    if a.json {
+    vtz::formats::write_file(&a.output, bytes, a.force.force)?;
+    if a.json.json {
         outln!(
             "{}",
             serde_json::json!({

@@ -59,7 +59,7 @@ pub fn check_encode_options(a: &encode::Args) -> Result<()> {
 fn bands_as_points(a: &encode::Args, ui: &Ui) -> Result<PointSet> {
     let mut files = vec![a.input.clone()];
     files.extend(a.band.iter().cloned());
-    let format = common::parse_format(a.format.as_deref())?;
+    let format = a.format.get()?;
     let mut bands = Vec::new();
     for f in files {
         let r = common::read_raster(&f, format, &a.raster).map_err(|e| e.context(f.display()))?;
@@ -92,12 +92,7 @@ fn band_bounds(a: &encode::Args) -> Result<Vec<(String, ErrorBound)>> {
 /// `vtz encode` of a point set.
 pub fn encode(a: &encode::Args, ui: &Ui) -> Result<()> {
     check_encode_options(a)?;
-    let bound = a
-        .max_error
-        .as_deref()
-        .map(|s| common::bound("--max-error", s))
-        .transpose()?
-        .unwrap_or(ErrorBound::PercentOfRange(1.0));
+    let bound = a.bound.get()?.unwrap_or(ErrorBound::PercentOfRange(1.0));
     let bands = band_bounds(a)?;
     let crs = a.crs.as_deref().map(parse_crs).transpose()?;
     if let Some(r) = a.xy_resolution.filter(|r| !(*r > 0.0 && r.is_finite())) {
@@ -109,7 +104,7 @@ pub fn encode(a: &encode::Args, ui: &Ui) -> Result<()> {
         .output
         .clone()
         .unwrap_or_else(|| common::default_output(&a.input, "vtz"));
-    common::check_output(&a.input, &output, a.force)?;
+    common::check_output(&a.input, &output, a.force.force)?;
     let mut points = if a.band.is_empty() {
         let ro = ReadPointsOptions {
             class: a.class,
@@ -138,11 +133,11 @@ pub fn encode(a: &encode::Args, ui: &Ui) -> Result<()> {
     let (bytes, rep) = ui.progress("encoding", |p| {
         vtz::encode_points(&points, &o, &mut |f| p(f))
     })?;
-    vtz::formats::write_file(&output, bytes, a.force)?;
+    vtz::formats::write_file(&output, bytes, a.force.force)?;
     if let Some(s) = &a.staged {
         s.upload(ui)?;
     }
-    if a.max_error.is_none() {
+    if a.bound.max_error.is_none() {
         ui.say("note: no --max-error given: 1% of each column's value range");
     }
     if !rep.positions_lossless {
@@ -152,7 +147,7 @@ pub fn encode(a: &encode::Args, ui: &Ui) -> Result<()> {
         ));
     }
     let bpp = 8.0 * rep.bytes as f64 / rep.points.max(1) as f64;
-    if a.json {
+    if a.json.json {
         let j = serde_json::json!({
             "input": a.input, "output": a.shown_output.as_ref().unwrap_or(&output), "bytes": rep.bytes, "points": rep.points,
             "positions": rep.positions, "sites": rep.sites, "levels": rep.levels,
@@ -200,7 +195,7 @@ pub fn decode_route(a: &decode::Args) -> Result<Option<Vec<u8>>> {
         vtz::formats::Format::from_path(&a.output)?;
     }
     if common::is_points_file(&a.input)? {
-        common::check_output(&a.input, &a.output, a.force)?;
+        common::check_output(&a.input, &a.output, a.force.force)?;
         return common::read_file(&a.input).map(Some);
     }
     if points_out {
@@ -244,7 +239,7 @@ pub fn decode(a: &decode::Args, bytes: &[u8], ui: &Ui) -> Result<()> {
             .map_err(ctx)?;
         apply_crs(&mut p.epsg, &mut p.wkt, a.crs.as_deref())?;
         let wo = WritePointsOptions {
-            force: a.force,
+            force: a.force.force,
             ..Default::default()
         };
         let rep = ui.busy("writing", || write_points(&a.output, &p, &wo))?;
@@ -283,7 +278,7 @@ pub fn decode(a: &decode::Args, bytes: &[u8], ui: &Ui) -> Result<()> {
     if let Some(g) = r.georef.as_mut() {
         apply_crs(&mut g.epsg, &mut g.wkt, a.crs.as_deref())?;
     }
-    let wo = common::write_options(format, a.force, &a.raster, &a.output_opts);
+    let wo = common::write_options(format, a.force.force, &a.raster, &a.output_opts);
     ui.busy("writing", || vtz::write_path(&r, &a.output, &wo))?;
     ui.say(format!(
         "{}: {}x{} f32, cells of {}",
@@ -320,7 +315,7 @@ pub fn info(a: &info::Args, bytes: &[u8]) -> Result<()> {
     let i = vtz::points_info(bytes, vtz::Limits::default())
         .map_err(|e| e.context(a.input.display()))?;
     let bpp = 8.0 * i.bytes as f64 / i.points.max(1) as f64;
-    if a.json {
+    if a.json.json {
         let j = serde_json::json!({
             "kind": "points", "version": 3, "bytes": i.bytes, "points": i.points,
             "positions": i.positions, "sites": i.sites, "levels": i.levels,

@@ -12,9 +12,8 @@ pub struct Args {
     /// Output PNG picture.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Input format, when the extension does not tell.
-    #[arg(long, value_name = "FMT")]
-    pub format: Option<String>,
+    #[command(flatten)]
+    pub format: common::InputFormat,
     /// Mark the sites a .vtz kept (its primary section must be a sites section) as red dots.
     #[arg(long)]
     pub sites: bool,
@@ -40,16 +39,15 @@ pub struct Args {
     /// Draw every sample as an N x N block (for small rasters).
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub scale: u32,
-    /// Replace an existing output file.
-    #[arg(short, long)]
-    pub force: bool,
+    #[command(flatten)]
+    pub force: common::Force,
     #[command(flatten)]
     pub raster: RasterOpts,
 }
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
-    let format = common::parse_format(a.format.as_deref())?;
-    common::check_output(&a.input, &a.output, a.force)?;
+    let format = a.format.get()?;
+    common::check_output(&a.input, &a.output, a.force.force)?;
     if a.sites && !common::is_vtz(&a.input, format) {
         return Err(Error::invalid("--sites needs a .vtz input"));
     }
@@ -75,7 +73,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let png = ui.busy("rendering", || {
         vtz::viz::hillshade::hillshade(&raster, &opts)
     })?;
-    vtz::formats::write_file(&a.output, png, a.force)?;
+    vtz::formats::write_file(&a.output, png, a.force.force)?;
     let mut msg = format!(
         "{}: {}x{} picture",
         a.output.display(),

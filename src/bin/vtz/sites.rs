@@ -12,14 +12,13 @@ pub struct Args {
     /// Write the CSV here instead of stdout.
     #[arg(short, long)]
     pub output: Option<PathBuf>,
-    /// Replace an existing output file.
-    #[arg(short, long)]
-    pub force: bool,
+    #[command(flatten)]
+    pub force: common::Force,
 }
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
     if let Some(p) = &a.output {
-        common::check_output(&a.input, p, a.force)?;
+        common::check_output(&a.input, p, a.force.force)?;
     }
     let bytes = common::read_file(&a.input)?;
     let mut dec = vtz::Decoder::with_limits(std::io::Cursor::new(bytes), Limits::default())
@@ -51,7 +50,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     }
     match &a.output {
         Some(p) => {
-            vtz::formats::write_file(p, csv.into_bytes(), a.force)?;
+            vtz::formats::write_file(p, csv.into_bytes(), a.force.force)?;
             ui.say(format!("{}: {rank} sites", p.display()));
         }
         None => out!("{csv}"),

@@ -5,6 +5,16 @@ use std::path::PathBuf;
 use vtz::{Result, TerrainRequest};
 
 #[derive(clap::Args)]
+#[command(
+    mut_arg("max_error", |a| a.help(
+        "Every raster sample within E data units or E% of the range of the finest level's mesh \
+         (default 1%); coarser levels meet Cesium's geometric error of their zoom. Measured on \
+         the decoded tiles: a zoom that misses its bound is an error (exit 1)"
+    )),
+    mut_arg("force", |a| a.help(
+        "Replace an existing output directory (only one holding a layer.json)"
+    ))
+)]
 pub struct Args {
     /// Input: a raster in geographic coordinates (EPSG:4326: SRTM .hgt, a geographic
     /// GeoTIFF) or a .vtz of one.
@@ -12,11 +22,8 @@ pub struct Args {
     /// Output directory: layer.json and {z}/{x}/{y}.terrain (TMS geographic scheme).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Every raster sample within E data units or E% of the range of the finest level's
-    /// mesh (default 1%); coarser levels meet Cesium's geometric error of their zoom.
-    /// Measured on the decoded tiles: a zoom that misses its bound is an error (exit 1).
-    #[arg(long, value_name = "E")]
-    pub max_error: Option<String>,
+    #[command(flatten)]
+    pub bound: common::Bound,
     /// The finest zoom (default: the first whose tiles span at most 256 samples).
     #[arg(long, value_name = "Z")]
     pub max_zoom: Option<u8>,
@@ -33,28 +40,21 @@ pub struct Args {
     /// (for checking the tiles with another decoder).
     #[arg(long)]
     pub dump_json: bool,
-    /// Input raster format, when the extension does not tell.
-    #[arg(long, value_name = "FMT")]
-    pub format: Option<String>,
-    /// Replace an existing output directory (only one holding a layer.json).
-    #[arg(short, long)]
-    pub force: bool,
-    /// Print the result as JSON on stdout.
-    #[arg(long)]
-    pub json: bool,
+    #[command(flatten)]
+    pub format: common::InputFormat,
+    #[command(flatten)]
+    pub force: common::Force,
+    #[command(flatten)]
+    pub json: common::Json,
     #[command(flatten)]
     pub raster: RasterOpts,
 }
 
 pub fn run(a: Args, ui: &Ui) -> Result<()> {
-    let in_format = common::parse_format(a.format.as_deref())?;
-    common::check_output_dir(&a.input, &a.output, a.force, "layer.json")?;
+    let in_format = a.format.get()?;
+    common::check_output_dir(&a.input, &a.output, a.force.force, "layer.json")?;
     let mut req = TerrainRequest::default();
-    req.max_error = a
-        .max_error
-        .as_deref()
-        .map(|s| common::bound("--max-error", s))
-        .transpose()?;
+    req.max_error = a.bound.get()?;
     req.max_zoom = a.max_zoom;
     req.normals = !a.no_normals;
     req.water_mask = !a.no_water_mask;
@@ -63,10 +63,10 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let r = common::read_raster(&a.input, in_format, &a.raster)?;
     let report = ui
         .progress("tiling", |p| {
-            vtz::write_terrain(&r, &req, &a.output, a.force, p)
+            vtz::write_terrain(&r, &req, &a.output, a.force.force, p)
         })
         .map_err(|e| e.context(a.input.display()))?;
-    if a.json {
+    if a.json.json {
         let levels: Vec<_> = report
             .levels
             .iter()

@@ -6,13 +6,13 @@ use vtz::metrics::num;
 use vtz::{Limits, Result};
 
 #[derive(clap::Args)]
+#[command(mut_arg("json", |a| a.help("Print one JSON object per file on stdout instead of text")))]
 pub struct Args {
     /// The .vtz files to check: paths, or URLs (https://…, http://…, s3://bucket/key).
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
-    /// Print one JSON object per file on stdout instead of text.
-    #[arg(long)]
-    pub json: bool,
+    #[command(flatten)]
+    pub json: common::Json,
 }
 
 /// Check every file; exit 1 when any has a problem (all are checked and reported).
@@ -20,7 +20,7 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let mut failed = 0usize;
     for f in &a.files {
         let res = ui.busy(&format!("verifying {}", f.display()), || check(f));
-        match (&res, a.json) {
+        match (&res, a.json.json) {
             (Ok(v), false) if v.point_set => {
                 let cols: Vec<String> = v
                     .surfaces

@@ -48,12 +48,10 @@ pub struct Args {
     /// Input raster format, when the extension does not tell.
     #[arg(long, value_name = "FMT")]
     pub input_format: Option<String>,
-    /// Replace an existing output file.
-    #[arg(short, long)]
-    pub force: bool,
-    /// Print the result as JSON on stdout.
-    #[arg(long)]
-    pub json: bool,
+    #[command(flatten)]
+    pub force: common::Force,
+    #[command(flatten)]
+    pub json: common::Json,
     #[command(flatten)]
     pub raster: RasterOpts,
 }
@@ -88,9 +86,9 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     req.validate()?;
     common::check_not_dir(&a.input)?;
     let staged = match common::url_of(&a.output) {
-        Some(url) => Some(common::Staged::new(url, a.force)?),
+        Some(url) => Some(common::Staged::new(url, a.force.force)?),
         None => {
-            common::check_output(&a.input, &a.output, a.force)?;
+            common::check_output(&a.input, &a.output, a.force.force)?;
             None
         }
     };
@@ -98,13 +96,13 @@ pub fn run(a: Args, ui: &Ui) -> Result<()> {
     let r = common::read_raster(&a.input, in_format, &a.raster)?;
     let report = ui
         .progress("tiling", |p| {
-            vtz::web::write_web(&r, &req, local, a.force || staged.is_some(), p)
+            vtz::web::write_web(&r, &req, local, a.force.force || staged.is_some(), p)
         })
         .map_err(|e| e.context(a.input.display()))?;
     if let Some(s) = &staged {
         s.upload(ui)?;
     }
-    if a.json {
+    if a.json.json {
         let levels: Vec<_> = report
             .levels
             .iter()
