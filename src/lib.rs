@@ -41,6 +41,7 @@ mod model;
 mod predict;
 mod quant;
 pub mod source;
+mod threads;
 pub mod viz;
 #[cfg(feature = "web")]
 pub mod web;

@@ -37,6 +37,7 @@ use std::sync::Arc;
 
 #[cfg(feature = "internals")]
 pub use decode::read_all;
+pub use crate::threads::on_threads;
 
 /// Encode a raster into `.vtz` bytes.
 pub fn encode(raster: &Raster, opts: &EncodeOptions) -> Result<Vec<u8>> {
@@ -234,39 +235,6 @@ impl Encoder {
     ) -> Result<(Vec<u8>, EncodeReport)> {
         encode_progress(raster, &self.opts, progress)
     }
-}
-
-/// Run `f` on a rayon pool of `threads` threads (0 = the global pool, all cores), for
-/// bindings that call the library once per chunk or block (Python, the C ABI): each calling
-/// thread keeps its own pools, one per size, so no threads start per call, and calls from
-/// different threads run side by side (one shared pool of 1 would run them one after
-/// another). The library's own functions take `threads` in their options as well.
-pub fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> Result<T> {
-    use std::cell::RefCell;
-    use std::collections::HashMap;
-    use std::rc::Rc;
-    // wasm32 without atomics has no threads to start (see `methods::Pool`).
-    if threads == 0 || cfg!(all(target_arch = "wasm32", not(target_feature = "atomics"))) {
-        return Ok(f());
-    }
-    thread_local! {
-        static POOLS: RefCell<HashMap<usize, Rc<rayon::ThreadPool>>> = RefCell::new(HashMap::new());
-    }
-    let pool = POOLS.with(|p| -> Result<Rc<rayon::ThreadPool>> {
-        let mut pools = p.borrow_mut();
-        if let Some(pool) = pools.get(&threads) {
-            return Ok(pool.clone());
-        }
-        let pool = Rc::new(
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .map_err(|e| Error::invalid(format!("cannot start {threads} threads: {e}")))?,
-        );
-        pools.insert(threads, pool.clone());
-        Ok(pool)
-    })?;
-    Ok(pool.install(f))
 }
 
 /// What a file holds, read without decoding a sample (the header and the directory).

@@ -9,9 +9,10 @@ use super::options::{DecodeOptions, EncodeOptions, SectionChoice};
 use crate::container::tiled::{TileGrid, TiledReader, TiledWriter, tile_block, tile_name};
 use crate::container::{ContainerReader, Header, SectionKind};
 use crate::error::{Error, Result};
-use crate::methods::{self, Method};
+use crate::methods::Method;
 use crate::model::{Raster, RowSource, Window};
 use crate::quant::ErrorBound;
+use crate::threads::{pool, with_threads};
 use std::io::{Seek, Write};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -37,19 +38,6 @@ pub const MARGIN: u32 = 8;
 
 /// Rows a band-by-band decode hands out at a time.
 const SUB_BAND: usize = 64;
-
-/// The threads to use for `n` (0 = what the machine offers).
-pub(crate) fn threads_for(n: usize) -> usize {
-    if n == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    } else {
-        n
-    }
-}
-
-pub(crate) fn pool(threads: usize) -> Result<crate::methods::Pool> {
-    crate::methods::thread_pool(threads_for(threads))
-}
 
 /// Options that are whole-file notions: a size target, comparison sections, a site count
 /// or an RMSE target (a tile would meet each on its own).
@@ -232,7 +220,7 @@ pub fn encode_tiled<W: Write + Seek>(
                         .enumerate()
                         .for_each_with(tx, |tx, (i, (k, t))| {
                             let r =
-                                methods::with_threads(1, || encode_parts(t, topts, &mut |_| {}))
+                                with_threads(1, || encode_parts(t, topts, &mut |_| {}))
                                     .map_err(|e| e.context(tile_name(grid, *k)));
                             let r = r.and_then(|(hd, sections, rep)| {
                                 let kind = sections[hd.primary as usize].kind;
@@ -478,7 +466,7 @@ fn decode_tiles(
                                 scale: None,
                                 ..opts.clone()
                             };
-                            methods::with_threads(1, || {
+                            with_threads(1, || {
                                 decode::decode_reader(&mut trd, &o, &|_| {})
                             })
                             .map_err(|e| e.context(tile_name(&grid, k)))
@@ -533,7 +521,7 @@ fn blend(
     (sy0, sy1): (usize, usize),
     fill: f64,
     header: &Header,
-    pool: &crate::methods::Pool,
+    pool: &crate::threads::Pool,
 ) -> Raster {
     use rayon::prelude::*;
     let bh = sy1 - sy0;
@@ -726,7 +714,7 @@ pub(crate) fn decode_overview(
                             threads: 1,
                             ..opts.clone()
                         };
-                        methods::with_threads(1, || decode::decode_reader(&mut trd, &o, &|_| {}))
+                        with_threads(1, || decode::decode_reader(&mut trd, &o, &|_| {}))
                             .map_err(|e| e.context(tile_name(&grid, t)))
                     });
                     let d = done.fetch_add(1, Ordering::Relaxed) + 1;

@@ -478,58 +478,7 @@ pub(crate) fn crop<T: Copy>(v: &[T], width: usize, win: Window) -> Vec<T> {
     out
 }
 
-thread_local! {
-    static THREAD_BUDGET: std::cell::Cell<Option<usize>> = const { std::cell::Cell::new(None) };
-}
-
-/// Run `f` with the methods' own threads limited to `n` on this thread (a tiled encode
-/// runs one tile per core, each with one thread).
-pub(crate) fn with_threads<T>(n: usize, f: impl FnOnce() -> T) -> T {
-    let old = THREAD_BUDGET.with(|c| c.replace(Some(n.max(1))));
-    let out = f();
-    THREAD_BUDGET.with(|c| c.set(old));
-    out
-}
-
-/// A rayon pool of `n` threads (the codec's tiles, resampling and the sites' renderer
-/// each run in one of these, so a caller's thread count is kept whatever the global pool).
-#[cfg(not(all(target_arch = "wasm32", not(target_feature = "atomics"))))]
-pub(crate) fn thread_pool(n: usize) -> Result<Pool> {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(n)
-        .build()
-        .map_err(|e| Error::unsupported(format!("cannot start {n} threads: {e}")))
-}
-
-/// What [`thread_pool`] gives: a rayon pool.
-#[cfg(not(all(target_arch = "wasm32", not(target_feature = "atomics"))))]
-pub(crate) type Pool = rayon::ThreadPool;
-
-/// wasm32 without atomics (the browser decoder) has no threads, and an explicit rayon
-/// pool cannot start there: [`thread_pool`] gives this stand-in, whose `install` runs the
-/// closure on the calling thread (rayon's parallel iterators inside it then run on the
-/// global pool, which on this target is the calling thread too).
-#[cfg(all(target_arch = "wasm32", not(target_feature = "atomics")))]
-pub(crate) struct Pool;
-
-#[cfg(all(target_arch = "wasm32", not(target_feature = "atomics")))]
-impl Pool {
-    pub(crate) fn install<R>(&self, f: impl FnOnce() -> R) -> R {
-        f()
-    }
-
-    pub(crate) fn current_num_threads(&self) -> usize {
-        1
-    }
-}
-
-/// The calling thread alone, whatever `n` (see [`Pool`]).
-#[cfg(all(target_arch = "wasm32", not(target_feature = "atomics")))]
-pub(crate) fn thread_pool(_n: usize) -> Result<Pool> {
-    Ok(Pool)
-}
-
-/// The thread limit [`with_threads`] set on this thread, if any.
-pub(crate) fn thread_budget() -> Option<usize> {
-    THREAD_BUDGET.with(|c| c.get())
-}
+// The methods' threads come from the room below them (`crate::threads`).
+pub(crate) use crate::threads::{thread_budget, thread_pool};
+#[cfg(test)]
+pub(crate) use crate::threads::with_threads;
