@@ -479,6 +479,6 @@ pub(crate) fn crop<T: Copy>(v: &[T], width: usize, win: Window) -> Vec<T> {
 }
 
 // The methods' threads come from the room below them (`crate::threads`).
-pub(crate) use crate::threads::{thread_budget, thread_pool};
 #[cfg(test)]
 pub(crate) use crate::threads::with_threads;
+pub(crate) use crate::threads::{thread_budget, thread_pool};
