@@ -478,7 +478,7 @@ pub(crate) fn crop<T: Copy>(v: &[T], width: usize, win: Window) -> Vec<T> {
     out
 }
 
-// The methods' threads come from the room below them (`crate::threads`).
-#[cfg(test)]
-pub(crate) use crate::threads::with_threads;
-pub(crate) use crate::threads::{thread_budget, thread_pool};
+// The methods' threads come from the room below them (`crate::threads`); `with_threads`
+// for the methods' tests and docs.
+#[allow(unused_imports)]
+pub(crate) use crate::threads::{thread_budget, thread_pool, with_threads};
