@@ -44,6 +44,7 @@ mod quant;
 pub mod rd;
 pub mod source;
 mod terrain;
+mod threads;
 pub mod viz;
 #[cfg(feature = "web")]
 pub mod web;

@@ -15,11 +15,6 @@ pub(crate) fn kind_names(k: SectionKind) -> Option<&'static str> {
     methods::by_section(k).map(|m| m.section_name())
 }
 
-/// Open a container with the registry's section names.
-pub(crate) fn open<R: Read + Seek>(inner: R, limits: Limits) -> Result<ContainerReader<R>> {
-    ContainerReader::new(inner, limits, kind_names)
-}
-
 /// The directory index `choice` names in an opened file.
 pub(crate) fn section_index<R: Read + Seek>(
     rd: &ContainerReader<R>,

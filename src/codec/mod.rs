@@ -18,9 +18,7 @@ pub use surface::Surface;
 pub use tiles::{DEFAULT_TILE, tile_count};
 pub use verify::Verified;
 
-use crate::container::tiled::{
-    TiledReader, VERSION_CLOUD, VERSION_HEADS, VERSION_TILED, peek_version,
-};
+use crate::container::tiled::RasterReader;
 use crate::container::{ContainerReader, Limits, SF_REQUIRED};
 use crate::error::{Error, Result};
 use crate::formats::{self, Format, ReadOptions, WriteOptions};
@@ -32,6 +30,7 @@ use std::io::{Cursor, Read, Seek};
 use std::path::Path;
 use std::sync::Arc;
 
+pub use crate::threads::on_threads;
 #[cfg(feature = "internals")]
 pub use decode::read_all;
 
@@ -233,39 +232,6 @@ impl Encoder {
     }
 }
 
-/// Run `f` on a rayon pool of `threads` threads (0 = the global pool, all cores), for
-/// bindings that call the library once per chunk or block (Python, the C ABI): each calling
-/// thread keeps its own pools, one per size, so no threads start per call, and calls from
-/// different threads run side by side (one shared pool of 1 would run them one after
-/// another). The library's own functions take `threads` in their options as well.
-pub fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> Result<T> {
-    use std::cell::RefCell;
-    use std::collections::HashMap;
-    use std::rc::Rc;
-    // wasm32 without atomics has no threads to start (see `methods::Pool`).
-    if threads == 0 || cfg!(all(target_arch = "wasm32", not(target_feature = "atomics"))) {
-        return Ok(f());
-    }
-    thread_local! {
-        static POOLS: RefCell<HashMap<usize, Rc<rayon::ThreadPool>>> = RefCell::new(HashMap::new());
-    }
-    let pool = POOLS.with(|p| -> Result<Rc<rayon::ThreadPool>> {
-        let mut pools = p.borrow_mut();
-        if let Some(pool) = pools.get(&threads) {
-            return Ok(pool.clone());
-        }
-        let pool = Rc::new(
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .map_err(|e| Error::invalid(format!("cannot start {threads} threads: {e}")))?,
-        );
-        pools.insert(threads, pool.clone());
-        Ok(pool)
-    })?;
-    Ok(pool.install(f))
-}
-
 /// What a file holds, read without decoding a sample (the header and the directory).
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
@@ -395,30 +361,14 @@ pub struct SectionInfo {
 /// # Ok::<(), vtz::Error>(())
 /// ```
 pub struct Decoder {
-    rd: Opened,
+    /// The file, an untiled one as the one-tile case of a tiled one.
+    rd: RasterReader,
     info: FileInfo,
     opts: DecodeOptions,
     /// The validity mask, once read for statistics or sites.
     mask: Option<Option<Vec<bool>>>,
     /// Tiles the last decode skipped as corrupt (`DecodeOptions::skip_corrupt`).
     skipped: Vec<String>,
-}
-
-/// An opened file: untiled (version 1) or tiled (version 2). Decodes treat an untiled file
-/// as the one-tile case of a tiled one (`tiles::decode_bands`).
-pub(crate) enum Opened {
-    Untiled(ContainerReader<Source>),
-    Tiled(TiledReader),
-}
-
-impl Opened {
-    /// The limits the file was opened with.
-    fn limits(&self) -> &Limits {
-        match self {
-            Opened::Untiled(r) => r.limits(),
-            Opened::Tiled(r) => r.limits(),
-        }
-    }
 }
 
 impl Decoder {
@@ -454,30 +404,13 @@ impl Decoder {
 
     /// [`Decoder::open`] with explicit limits.
     pub fn open_with_limits(src: Arc<dyn RangeSource>, limits: Limits) -> Result<Decoder> {
-        let mut reader = Source::open(src)?;
+        let reader = Source::open(src)?;
         let file_bytes = reader.len();
-        let version = peek_version(&mut reader)?;
-        if version == crate::container::points::VERSION_POINTS {
-            return Err(Error::unsupported(
-                "this is a point set (container version 3), not a raster: read it with \
-                 vtz::decode_points (the CLI decodes either)",
-            ));
-        }
-        let tiled = [VERSION_TILED, VERSION_CLOUD, VERSION_HEADS].contains(&version);
-        let rd = if tiled {
-            Opened::Tiled(tiles::open(reader, limits)?)
-        } else {
-            Opened::Untiled(decode::open(reader, limits)?)
-        };
-        let (h, entries, primary) = match &rd {
-            Opened::Untiled(r) => (
-                r.header().clone(),
-                r.entries().to_vec(),
-                Some(r.header().primary as usize),
-            ),
-            Opened::Tiled(r) => (r.header().clone(), r.global().to_vec(), None),
-        };
-        let sections = entries
+        let rd = tiles::open(reader, limits)?;
+        let h = rd.header().clone();
+        let primary = rd.primary();
+        let sections = rd
+            .sections()
             .iter()
             .enumerate()
             .map(|(i, e)| SectionInfo {
@@ -491,43 +424,39 @@ impl Decoder {
                 bytes: e.length,
             })
             .collect();
-        let tiles = match &rd {
-            Opened::Untiled(_) => None,
-            Opened::Tiled(r) => {
-                let g = r.grid();
-                Some(TilesInfo {
-                    tile_width: g.tile_w,
-                    tile_height: g.tile_h,
-                    cols: g.cols(),
-                    rows: g.rows(),
-                    margin: g.margin,
-                    overview_split: r.split(),
-                    tiles: r
-                        .tiles()
-                        .iter()
-                        .enumerate()
-                        .map(|(k, t)| TileInfo {
-                            index: k,
-                            window: g.rect(k),
-                            coded: g.ext(k),
-                            offset: t.offset,
-                            bytes: t.length,
-                            head_bytes: t.head,
-                            tail_offset: t.tail_offset,
-                            method: methods::by_section(t.kind).map_or_else(
-                                || format!("unknown-{}", t.kind.code()),
-                                |m| m.name().to_string(),
-                            ),
-                            valid: t.valid,
-                            range: t.range,
-                            max_error: t.max_error,
-                        })
-                        .collect(),
+        // What `vtz info` lists of a tiled file's grid (an untiled file's is its one tile).
+        let g = rd.grid();
+        let tiles = rd.tiled().then(|| TilesInfo {
+            tile_width: g.tile_w,
+            tile_height: g.tile_h,
+            cols: g.cols(),
+            rows: g.rows(),
+            margin: g.margin,
+            overview_split: rd.split(),
+            tiles: rd
+                .tiles()
+                .iter()
+                .enumerate()
+                .map(|(k, t)| TileInfo {
+                    index: k,
+                    window: g.rect(k),
+                    coded: g.ext(k),
+                    offset: t.offset,
+                    bytes: t.length,
+                    head_bytes: t.head,
+                    tail_offset: t.tail_offset,
+                    method: methods::by_section(t.kind).map_or_else(
+                        || format!("unknown-{}", t.kind.code()),
+                        |m| m.name().to_string(),
+                    ),
+                    valid: t.valid,
+                    range: t.range,
+                    max_error: t.max_error,
                 })
-            }
-        };
+                .collect(),
+        });
         let info = FileInfo {
-            version,
+            version: rd.version(),
             file_bytes,
             width: h.width,
             height: h.height,
@@ -558,15 +487,20 @@ impl Decoder {
     /// tile's, from the index). Reads one section; the statistics ([`Decoder::stats`])
     /// decode it.
     pub fn max_error(&mut self) -> Result<f64> {
-        match &mut self.rd {
-            Opened::Tiled(r) => Ok(r.tiles().iter().map(|t| t.max_error).fold(0.0, f64::max)),
-            Opened::Untiled(rd) => {
-                let idx = rd.header().primary as usize;
-                stored_bound(rd, idx)?.ok_or_else(|| {
-                    Error::unsupported(format!("the primary section {idx} is not a method's"))
-                })
-            }
-        }
+        // A tiled file's tiles keep theirs in the index; an untiled file's one tile, in its
+        // primary section.
+        let Some(rd) = self.rd.whole() else {
+            return Ok(self
+                .rd
+                .tiles()
+                .iter()
+                .map(|t| t.max_error)
+                .fold(0.0, f64::max));
+        };
+        let idx = rd.header().primary as usize;
+        stored_bound(rd, idx)?.ok_or_else(|| {
+            Error::unsupported(format!("the primary section {idx} is not a method's"))
+        })
     }
 
     /// The source's GDAL metadata (the XML of its GDAL_METADATA tag) as a full decode gives
@@ -574,17 +508,9 @@ impl Decoder {
     /// without the `STATISTICS_…` items when it is lossy (the decoded samples' statistics
     /// differ from the source's). `None` when the source had none.
     pub fn gdal_metadata(&mut self) -> Result<Option<String>> {
-        let xml = match &mut self.rd {
-            Opened::Untiled(rd) => rd.read_gdal_metadata()?,
-            Opened::Tiled(rd) => rd
-                .global_section(crate::container::SectionKind::GDAL_METADATA)?
-                .map(|b| {
-                    String::from_utf8(b)
-                        .map_err(|_| Error::corrupt("gdal-metadata section is not UTF-8"))
-                })
-                .transpose()?,
+        let Some(xml) = self.rd.gdal_metadata()? else {
+            return Ok(None);
         };
-        let Some(xml) = xml else { return Ok(None) };
         Ok(Some(if self.max_error()? != 0.0 {
             formats::without_statistics(&xml).into_owned()
         } else {
@@ -597,11 +523,11 @@ impl Decoder {
     /// file's global sections hold no method (its tiles' bounds are in
     /// [`FileInfo::tiles`]).
     pub fn section_max_errors(&mut self) -> Result<Vec<Option<f64>>> {
-        match &mut self.rd {
-            Opened::Tiled(r) => Ok(vec![None; r.global().len()]),
-            Opened::Untiled(rd) => (0..rd.entries().len())
-                .map(|i| stored_bound(rd, i))
-                .collect(),
+        // A tiled file's own sections are metadata.
+        let n = self.rd.sections().len();
+        match self.rd.whole() {
+            None => Ok(vec![None; n]),
+            Some(rd) => (0..n).map(|i| stored_bound(rd, i)).collect(),
         }
     }
 
@@ -646,10 +572,7 @@ impl Decoder {
     /// against its index entry). The first problem is the error ([`Error::Corrupt`] for
     /// what the file gets wrong).
     pub fn verify(&mut self) -> Result<Verified> {
-        match &mut self.rd {
-            Opened::Untiled(rd) => verify::verify(rd),
-            Opened::Tiled(rd) => verify::verify_tiled(rd),
-        }
+        verify::verify_file(&mut self.rd)
     }
 
     /// [`Decoder::decode`] with a progress callback: the fraction done, 0..1, never
@@ -809,7 +732,7 @@ impl Decoder {
         m: &dyn methods::Representation,
         f: impl FnOnce(&DecodeJob) -> Result<T>,
     ) -> Result<Option<T>> {
-        let Opened::Untiled(rd) = &mut self.rd else {
+        let Some(rd) = self.rd.whole() else {
             return Err(Error::invalid(format!(
                 "the file is tiled ({} tiles): statistics and sites are per tile; encode with --tile 0 for one set",
                 self.info.tiles.as_ref().map_or(0, |t| t.tiles.len())

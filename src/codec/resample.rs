@@ -154,8 +154,7 @@ pub(crate) fn resample(
     let mut data = vec![0.0; ow * oh];
     let mut mask = vec![true; ow * oh];
     let threads = if threads == 0 {
-        crate::methods::thread_budget()
-            .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        crate::threads::default_threads()
     } else {
         threads
     };
@@ -165,7 +164,7 @@ pub(crate) fn resample(
         }
     } else {
         use rayon::prelude::*;
-        let pool = crate::methods::thread_pool(threads)?;
+        let pool = crate::threads::thread_pool(threads)?;
         pool.install(|| {
             ys.par_iter()
                 .zip(data.par_chunks_mut(ow))

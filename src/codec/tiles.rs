@@ -2,16 +2,16 @@
 //! are written in tile order as they finish, and decodes that read only the tiles a window
 //! touches, band of tiles by band of tiles.
 
-use super::Opened;
 use super::decode::{self, check_output};
 use super::encode::{EncodeReport, encode_parts};
 use super::options::{DecodeOptions, EncodeOptions, SectionChoice};
-use crate::container::tiled::{TileGrid, TiledReader, TiledWriter, tile_block, tile_name};
+use crate::container::tiled::{RasterReader, TileGrid, TiledWriter, tile_block, tile_name};
 use crate::container::{ContainerReader, Header, SectionKind};
 use crate::error::{Error, Result};
-use crate::methods::{self, Method};
+use crate::methods::Method;
 use crate::model::{Raster, RowSource, Window};
 use crate::quant::ErrorBound;
+use crate::threads::{pool, with_threads};
 use std::io::{Seek, Write};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -37,19 +37,6 @@ pub const MARGIN: u32 = 8;
 
 /// Rows a band-by-band decode hands out at a time.
 const SUB_BAND: usize = 64;
-
-/// The threads to use for `n` (0 = what the machine offers).
-pub(crate) fn threads_for(n: usize) -> usize {
-    if n == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    } else {
-        n
-    }
-}
-
-pub(crate) fn pool(threads: usize) -> Result<crate::methods::Pool> {
-    crate::methods::thread_pool(threads_for(threads))
-}
 
 /// Options that are whole-file notions: a size target, comparison sections, a site count
 /// or an RMSE target (a tile would meet each on its own).
@@ -231,9 +218,8 @@ pub fn encode_tiled<W: Write + Seek>(
                         .par_iter()
                         .enumerate()
                         .for_each_with(tx, |tx, (i, (k, t))| {
-                            let r =
-                                methods::with_threads(1, || encode_parts(t, topts, &mut |_| {}))
-                                    .map_err(|e| e.context(tile_name(grid, *k)));
+                            let r = with_threads(1, || encode_parts(t, topts, &mut |_| {}))
+                                .map_err(|e| e.context(tile_name(grid, *k)));
                             let r = r.and_then(|(hd, sections, rep)| {
                                 let kind = sections[hd.primary as usize].kind;
                                 let block = tile_block(hd.primary, &sections);
@@ -320,38 +306,69 @@ pub fn encode_tiled<W: Write + Seek>(
     Ok((out, report))
 }
 
-/// Open a tiled file with the registry's section names.
+/// Open a raster file (any version; an untiled one as a one-tile grid) with the registry's
+/// section names.
 pub(crate) fn open(
     inner: crate::source::Source,
     limits: crate::container::Limits,
-) -> Result<TiledReader> {
-    TiledReader::new(inner, limits, decode::kind_names)
+) -> Result<RasterReader> {
+    RasterReader::new(inner, limits, decode::kind_names)
 }
 
 /// Decode a window (or all) of a file band by band, top to bottom, each band handed to
 /// `sink`: the one decode path. An untiled file is the one-tile case: its one tile is the
-/// raster, decoded (the window of it, on every thread) as one band with nothing to blend. A
-/// tiled file's tiles go through [`decode_tiles`]. Gives back the tiles skipped as corrupt
-/// (`opts.skip_corrupt`).
+/// raster, decoded (the window of it, at the scale or overview asked, on every thread) as
+/// one band with nothing to blend. A tiled file's tiles go through [`decode_tiles`], an
+/// overview of them through [`decode_overview`] (one band). Gives back the tiles skipped
+/// as corrupt (`opts.skip_corrupt`).
 pub(crate) fn decode_bands(
-    rd: &mut Opened,
+    rd: &mut RasterReader,
     opts: &DecodeOptions,
     sink: &mut dyn FnMut(Raster) -> Result<()>,
     progress: &(dyn Fn(f64) + Sync),
 ) -> Result<Vec<String>> {
-    match rd {
-        Opened::Untiled(c) => {
-            sink(decode::decode_reader(c, opts, progress)?)?;
-            Ok(Vec::new())
-        }
-        Opened::Tiled(t) if opts.overview.is_some() => {
-            // An overview is one band: its window is checked against the limits whole.
-            let (r, skipped) = decode_overview(t, opts, progress)?;
-            sink(r)?;
-            Ok(skipped)
-        }
-        Opened::Tiled(t) => decode_tiles(t, opts, sink, progress),
+    if let Some(whole) = rd.whole() {
+        sink(decode::decode_reader(whole, opts, progress)?)?;
+        return Ok(Vec::new());
     }
+    check_tiled_options(opts)?;
+    if opts.overview.is_some() {
+        // An overview is one band: its window is checked against the limits whole.
+        let (r, skipped) = decode_overview(rd, opts, progress)?;
+        sink(r)?;
+        return Ok(skipped);
+    }
+    decode_tiles(rd, opts, sink, progress)
+}
+
+/// Decode tiles from their blocks as read (for a full decode or an overview), in parallel
+/// on `pool`, each on one thread: tile `k` (with what the caller keeps of it, `T`) with the
+/// options `tile_opts` gives it, its errors naming it. `tick` is called as each finishes.
+fn decode_blocks<T: Send>(
+    rd: &RasterReader,
+    blocks: Vec<(usize, T, Result<Vec<u8>>)>,
+    pool: &crate::threads::Pool,
+    tile_opts: &(dyn Fn(usize, &T) -> DecodeOptions + Sync),
+    tick: &(dyn Fn() + Sync),
+) -> Vec<(usize, T, Result<Raster>)> {
+    use rayon::prelude::*;
+    let opener = rd.opener();
+    let grid = rd.grid();
+    pool.install(|| {
+        blocks
+            .into_par_iter()
+            .map(|(k, t, block)| {
+                let r = block.and_then(|b| {
+                    let mut trd = opener.open(k, b)?;
+                    let o = tile_opts(k, &t);
+                    with_threads(1, || decode::decode_reader(&mut trd, &o, &|_| {}))
+                        .map_err(|e| e.context(tile_name(&grid, k)))
+                });
+                tick();
+                (k, t, r)
+            })
+            .collect()
+    })
 }
 
 /// A decoded tile: the part of its coded samples inside the window (raster coordinates),
@@ -381,12 +398,11 @@ pub(crate) fn check_tiled_options(opts: &DecodeOptions) -> Result<()> {
 /// (one reader) and decoded (every thread), and each band of the window is blended from
 /// them, its rows side by side.
 fn decode_tiles(
-    rd: &mut TiledReader,
+    rd: &mut RasterReader,
     opts: &DecodeOptions,
     sink: &mut dyn FnMut(Raster) -> Result<()>,
     progress: &(dyn Fn(f64) + Sync),
 ) -> Result<Vec<String>> {
-    check_tiled_options(opts)?;
     let header = rd.header().clone();
     let grid = rd.grid();
     let (w, h) = (header.width as usize, header.height as usize);
@@ -397,12 +413,7 @@ fn decode_tiles(
         (win.width as u64).checked_mul(th.min(win.height) as u64),
         rd.limits(),
     )?;
-    let gdal = rd
-        .global_section(SectionKind::GDAL_METADATA)?
-        .map(|b| {
-            String::from_utf8(b).map_err(|_| Error::corrupt("gdal-metadata section is not UTF-8"))
-        })
-        .transpose()?;
+    let gdal = rd.gdal_metadata()?;
     let lossy = rd.tiles().iter().any(|t| t.max_error != 0.0);
     let gdal = if lossy || (win.width, win.height) != (w, h) {
         gdal.map(|x| crate::formats::without_statistics(&x).into_owned())
@@ -446,54 +457,49 @@ fn decode_tiles(
                 .collect();
             // One read for the blocks of these rows of tiles (a remote source fetches them
             // at once); decoding is parallel.
-            let blocks: Vec<(usize, Result<Vec<u8>>)> =
-                ks.iter().copied().zip(rd.tile_blocks(&ks, 0)?).collect();
-            let opener = rd.opener();
-            let out: Vec<(usize, Decoded)> = pool.install(|| {
-                use rayon::prelude::*;
-                blocks
-                    .into_par_iter()
-                    .map(|(k, block)| {
-                        let e = grid.ext(k);
-                        // The tile's coded samples inside the window, in raster coordinates.
-                        let x0 = win.x.max(e.x);
-                        let x1 = (win.x + win.width).min(e.x + e.width);
-                        let y0 = win.y.max(e.y);
-                        let y1 = (win.y + win.height).min(e.y + e.height);
-                        let sub = Window {
-                            x: x0,
-                            y: y0,
-                            width: x1 - x0,
-                            height: y1 - y0,
-                        };
-                        let raster = block.and_then(|b| {
-                            let mut trd = opener.open(k, b)?;
-                            let o = DecodeOptions {
-                                window: Some(Window {
-                                    x: sub.x - e.x,
-                                    y: sub.y - e.y,
-                                    ..sub
-                                }),
-                                threads: 1,
-                                scale: None,
-                                ..opts.clone()
-                            };
-                            methods::with_threads(1, || {
-                                decode::decode_reader(&mut trd, &o, &|_| {})
-                            })
-                            .map_err(|e| e.context(tile_name(&grid, k)))
-                        });
-                        let wx = (sub.x..sub.x + sub.width)
-                            .map(|x| grid.weight_x(k, x))
-                            .collect();
-                        let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-                        progress(n as f64 / total as f64);
-                        (k, Decoded { sub, raster, wx })
-                    })
-                    .collect()
-            });
-            for (k, d) in out {
-                let raster = match d.raster {
+            let blocks: Vec<(usize, Window, Result<Vec<u8>>)> = ks
+                .iter()
+                .copied()
+                .zip(rd.tile_blocks(&ks, 0)?)
+                .map(|(k, b)| {
+                    // The tile's coded samples inside the window, in raster coordinates.
+                    let e = grid.ext(k);
+                    let x0 = win.x.max(e.x);
+                    let x1 = (win.x + win.width).min(e.x + e.width);
+                    let y0 = win.y.max(e.y);
+                    let y1 = (win.y + win.height).min(e.y + e.height);
+                    let sub = Window {
+                        x: x0,
+                        y: y0,
+                        width: x1 - x0,
+                        height: y1 - y0,
+                    };
+                    (k, sub, b)
+                })
+                .collect();
+            let tile_opts = |k: usize, sub: &Window| {
+                let e = grid.ext(k);
+                DecodeOptions {
+                    window: Some(Window {
+                        x: sub.x - e.x,
+                        y: sub.y - e.y,
+                        ..*sub
+                    }),
+                    threads: 1,
+                    scale: None,
+                    ..opts.clone()
+                }
+            };
+            let tick = || {
+                let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+                progress(n as f64 / total as f64);
+            };
+            let out = decode_blocks(rd, blocks, &pool, &tile_opts, &tick);
+            for (k, sub, raster) in out {
+                let wx = (sub.x..sub.x + sub.width)
+                    .map(|x| grid.weight_x(k, x))
+                    .collect();
+                let raster = match raster {
                     Err(e) if opts.skip_corrupt && matches!(e, Error::Corrupt { .. }) => {
                         skipped.push(e.to_string());
                         Err(e)
@@ -501,7 +507,7 @@ fn decode_tiles(
                     Err(e) => return Err(e),
                     ok => ok,
                 };
-                decoded.insert(k, Decoded { raster, ..d });
+                decoded.insert(k, Decoded { sub, raster, wx });
             }
         }
         // Band r: the window's rows in core row r, handed out SUB_BAND rows at a time to
@@ -533,7 +539,7 @@ fn blend(
     (sy0, sy1): (usize, usize),
     fill: f64,
     header: &Header,
-    pool: &crate::methods::Pool,
+    pool: &crate::threads::Pool,
 ) -> Raster {
     use rayon::prelude::*;
     let bh = sy1 - sy0;
@@ -641,12 +647,11 @@ const OVERVIEW_READ_BYTES: u64 = 64 << 20;
 /// holds an overview sample decodes at its own 2^k lattice (a row of tiles at a time, on
 /// every thread), and the sample takes the tile's value at the lattice point nearest it
 /// (ties to the lower; within the tile). Gives back the tiles skipped as corrupt.
-pub(crate) fn decode_overview(
-    rd: &mut TiledReader,
+fn decode_overview(
+    rd: &mut RasterReader,
     opts: &DecodeOptions,
     progress: &(dyn Fn(f64) + Sync),
 ) -> Result<(Raster, Vec<String>)> {
-    check_tiled_options(opts)?;
     let header: Header = rd.header().clone();
     let grid = rd.grid();
     let (w, h) = (header.width as usize, header.height as usize);
@@ -713,28 +718,16 @@ pub(crate) fn decode_overview(
             .zip(got)
             .map(|((&t, (_, cr)), b)| (t, cr.clone(), b))
             .collect();
-        let opener = rd.opener();
-        let decoded: Vec<(usize, std::ops::Range<usize>, Result<Raster>)> = pool.install(|| {
-            use rayon::prelude::*;
-            blocks
-                .into_par_iter()
-                .map(|(t, cr, block)| {
-                    let r = block.and_then(|b| {
-                        let mut trd = opener.open(t, b)?;
-                        let o = DecodeOptions {
-                            window: None,
-                            threads: 1,
-                            ..opts.clone()
-                        };
-                        methods::with_threads(1, || decode::decode_reader(&mut trd, &o, &|_| {}))
-                            .map_err(|e| e.context(tile_name(&grid, t)))
-                    });
-                    let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-                    progress(d as f64 / total as f64);
-                    (t, cr, r)
-                })
-                .collect()
-        });
+        let tile_opts = |_: usize, _: &std::ops::Range<usize>| DecodeOptions {
+            window: None,
+            threads: 1,
+            ..opts.clone()
+        };
+        let tick = || {
+            let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+            progress(d as f64 / total as f64);
+        };
+        let decoded = decode_blocks(rd, blocks, &pool, &tile_opts, &tick);
         for (t, cr, r) in decoded {
             let r = match r {
                 Ok(r) => r,
@@ -765,11 +758,7 @@ pub(crate) fn decode_overview(
         }
     }
     let gdal = rd
-        .global_section(SectionKind::GDAL_METADATA)?
-        .map(|b| {
-            String::from_utf8(b).map_err(|_| Error::corrupt("gdal-metadata section is not UTF-8"))
-        })
-        .transpose()?
+        .gdal_metadata()?
         .map(|x| crate::formats::without_statistics(&x).into_owned());
     let mut r = Raster {
         width: win.width,
@@ -789,34 +778,34 @@ pub(crate) fn decode_overview(
     Ok((r, skipped))
 }
 
-/// Decode a window (or all) of a file into memory. An untiled file: its one tile's decode,
-/// with `opts.scale` the method's own surface where it has one; a tiled file: its bands
-/// joined, with `opts.scale` the decoded samples interpolated as every method's are
-/// (`codec::resample`: continuous across tile borders by construction).
+/// Decode a window (or all) of a file into memory: its bands ([`decode_bands`]) joined. An
+/// untiled file's one band is its one tile's decode, with `opts.scale` the method's own
+/// surface where it has one; a tiled file's scale is its joined bands' samples interpolated
+/// as every method's are (`codec::resample`: continuous across tile borders by
+/// construction).
 pub(crate) fn decode_all(
-    rd: &mut Opened,
+    rd: &mut RasterReader,
     opts: &DecodeOptions,
     progress: &(dyn Fn(f64) + Sync),
 ) -> Result<(Raster, Vec<String>)> {
-    let header = match rd {
-        Opened::Untiled(c) => return Ok((decode::decode_reader(c, opts, progress)?, Vec::new())),
-        Opened::Tiled(t) if opts.overview.is_some() => {
-            return decode_overview(t, opts, progress);
-        }
-        Opened::Tiled(t) => t.header().clone(),
-    };
-    let (w, h) = (header.width as usize, header.height as usize);
-    let limits = *rd.limits();
-    let scale = super::decode::check_scale(opts, w, h, &limits)?;
-    let win = decode::window(opts, w, h)?;
-    check_output(
-        || format!("a decode of {} x {} samples", win.width, win.height),
-        (win.width as u64).checked_mul(win.height as u64),
-        &limits,
-    )?;
+    // A tiled file's scale is applied here, to the joined bands (an overview has none).
+    let resampled = rd.tiled() && opts.overview.is_none();
+    let mut scale = None;
+    if resampled {
+        let header = rd.header();
+        let (w, h) = (header.width as usize, header.height as usize);
+        let limits = *rd.limits();
+        scale = decode::check_scale(opts, w, h, &limits)?;
+        let win = decode::window(opts, w, h)?;
+        check_output(
+            || format!("a decode of {} x {} samples", win.width, win.height),
+            (win.width as u64).checked_mul(win.height as u64),
+            &limits,
+        )?;
+    }
     let mut parts: Vec<Raster> = Vec::new();
     let o = DecodeOptions {
-        scale: None,
+        scale: if resampled { None } else { opts.scale },
         ..opts.clone()
     };
     // With a scale, the bands are the first half of the work, the resampling the second.
@@ -834,7 +823,7 @@ pub(crate) fn decode_all(
     let mut r = it.next().ok_or_else(|| Error::invalid("empty window"))?;
     let rest: Vec<Raster> = it.collect();
     let rows: usize = r.height + rest.iter().map(|b| b.height).sum::<usize>();
-    r.data.reserve(win.width * rows - r.data.len());
+    r.data.reserve(r.width * rows - r.data.len());
     for b in rest {
         r.height += b.height;
         let had = r.mask.is_some() || b.mask.is_some();

@@ -151,11 +151,15 @@ pub(crate) fn verify<R: Read + Seek>(rd: &mut ContainerReader<R>) -> Result<Veri
     })
 }
 
-/// [`verify`] for a tiled file: the global sections, then every tile's block (its
-/// checksum), its sections checked as a file's, and its decode against its index entry
-/// (valid count, range, max error).
-pub(crate) fn verify_tiled(rd: &mut crate::container::tiled::TiledReader) -> Result<Verified> {
-    for e in rd.global().to_vec() {
+/// [`verify`] for a raster file: an untiled file's one tile is the file, checked as one
+/// container; a tiled file's global sections, then every tile's block (its checksum), its
+/// sections checked as a file's, and its decode against its index entry (valid count,
+/// range, max error).
+pub(crate) fn verify_file(rd: &mut crate::container::tiled::RasterReader) -> Result<Verified> {
+    if let Some(whole) = rd.whole() {
+        return verify(whole);
+    }
+    for e in rd.sections().to_vec() {
         let p = rd.global_section(e.kind)?.expect("the directory lists it");
         let text = std::str::from_utf8(&p)
             .map_err(|_| Error::corrupt(format!("global {} section: not UTF-8", e.name)))?;
@@ -167,7 +171,7 @@ pub(crate) fn verify_tiled(rd: &mut crate::container::tiled::TiledReader) -> Res
     }
     let grid = rd.grid();
     let mut out = Verified {
-        sections: rd.global().len(),
+        sections: rd.sections().len(),
         surfaces: Vec::new(),
         valid: 0,
         unknown: Vec::new(),

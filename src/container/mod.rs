@@ -175,8 +175,27 @@ pub struct ContainerReader<R> {
     available: u64,
 }
 
-impl<R: Read + Seek> ContainerReader<R> {
-    pub fn new(mut inner: R, limits: Limits, names: KindNames) -> Result<Self> {
+/// The start every `.vtz` file has, whatever its version (spec/FORMAT.md): the magic, the
+/// version, the required feature flags, the header's length, its body and the checksum over
+/// all of them. Read and checked here once for every reader; what follows it (a section
+/// directory, a tile index, a point-set header's body) is the version's.
+pub struct FileStart {
+    /// The container version.
+    pub version: u16,
+    /// The header body, its checksum checked.
+    pub body: Vec<u8>,
+    /// The file's length.
+    pub file_len: u64,
+}
+
+impl FileStart {
+    /// Read and check a file's start from `inner` (any position; left after the header's
+    /// checksum). `accept` says whether this reader reads the version (checked before the
+    /// flags and the header, which a version it does not read may lay out otherwise).
+    pub fn read<R: Read + Seek>(
+        inner: &mut R,
+        accept: impl FnOnce(u16) -> Result<()>,
+    ) -> Result<FileStart> {
         let file_len = inner
             .seek(SeekFrom::End(0))
             .map_err(|e| Error::io("measuring the file", e))?;
@@ -187,22 +206,18 @@ impl<R: Read + Seek> ContainerReader<R> {
         if file_len < 16 {
             // Tell "not a vtz file" apart from "a truncated one" where the bytes allow.
             let mut head = vec![0u8; file_len as usize];
-            read_exact(&mut inner, &mut head, "file start")?;
-            if MAGIC.starts_with(&head) {
+            read_exact(inner, &mut head, "file start")?;
+            if MAGIC.starts_with(&head[..head.len().min(8)]) {
                 return Err(Error::corrupt("file is truncated in the file start"));
             }
             return Err(Error::corrupt("not a vtz file (bad magic)"));
         }
-        read_exact(&mut inner, &mut fixed, "file start")?;
+        read_exact(inner, &mut fixed, "file start")?;
         if fixed[..8] != MAGIC {
             return Err(Error::corrupt("not a vtz file (bad magic)"));
         }
         let version = u16::from_le_bytes([fixed[8], fixed[9]]);
-        if version != VERSION {
-            return Err(Error::unsupported(format!(
-                "vtz format version {version} (this decoder reads versions 1–5)"
-            )));
-        }
+        accept(version)?;
         let req = u16::from_le_bytes([fixed[10], fixed[11]]);
         if req != 0 {
             return Err(Error::unsupported(format!(
@@ -219,15 +234,53 @@ impl<R: Read + Seek> ContainerReader<R> {
         if 16 + hlen as u64 + 4 > file_len {
             return Err(Error::corrupt("file is truncated in the header"));
         }
-        let mut hbuf = vec![0u8; hlen as usize + 4];
-        read_exact(&mut inner, &mut hbuf, "header")?;
-        let (body, crc_bytes) = hbuf.split_at(hlen as usize);
+        let mut body = vec![0u8; hlen as usize + 4];
+        read_exact(inner, &mut body, "header")?;
+        let crc_bytes = body.split_off(hlen as usize);
         let mut h = crc32fast::Hasher::new();
         h.update(&fixed);
-        h.update(body);
-        if !checksum_ok(h.finalize(), crc_bytes) {
+        h.update(&body);
+        if !checksum_ok(h.finalize(), &crc_bytes) {
             return Err(Error::corrupt("header checksum mismatch"));
         }
+        Ok(FileStart {
+            version,
+            body,
+            file_len,
+        })
+    }
+
+    /// Where the header's checksum ends: what the version puts after its header starts.
+    pub fn end(&self) -> u64 {
+        16 + self.body.len() as u64 + 4
+    }
+}
+
+impl<R: Read + Seek> ContainerReader<R> {
+    /// Open a version-1 file: its start, header and directory checked (the decoder opens
+    /// every version through [`tiled::RasterReader`]).
+    #[cfg(any(test, feature = "internals"))]
+    pub fn new(mut inner: R, limits: Limits, names: KindNames) -> Result<Self> {
+        let start = FileStart::read(&mut inner, |version| {
+            if version != VERSION {
+                return Err(Error::unsupported(format!(
+                    "vtz format version {version} (this decoder reads versions 1–5)"
+                )));
+            }
+            Ok(())
+        })?;
+        ContainerReader::after_start(inner, &start, limits, names)
+    }
+
+    /// A version-1 file whose start was read ([`FileStart::read`]): its header and directory.
+    pub fn after_start(
+        mut inner: R,
+        start: &FileStart,
+        limits: Limits,
+        names: KindNames,
+    ) -> Result<Self> {
+        let file_len = start.file_len;
+        let body = &start.body[..];
         let header = Header::from_bytes(body)?;
         if header.samples() > limits.max_samples {
             return Err(Error::limit(format!(
@@ -238,8 +291,7 @@ impl<R: Read + Seek> ContainerReader<R> {
                 limits.max_samples
             )));
         }
-        let dir_pos = 16 + hlen as u64 + 4;
-        let entries = read_directory(&mut inner, dir_pos, file_len, &limits, names, "")?;
+        let entries = read_directory(&mut inner, start.end(), file_len, &limits, names, "")?;
         check_primary(&entries, header.primary)?;
         Ok(ContainerReader {
             inner,

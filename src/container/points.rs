@@ -3,7 +3,7 @@
 //! as version 1 (spec/FORMAT.md, "Version 3: point sets").
 
 use super::bytes::{ByteReader, PutLe};
-use super::{Limits, MAGIC, Section, SectionEntry, SectionKind, read_directory};
+use super::{FileStart, Limits, MAGIC, Section, SectionEntry, SectionKind, read_directory};
 use crate::error::{Error, Result};
 use std::io::Cursor;
 
@@ -223,51 +223,20 @@ fn names(k: SectionKind) -> Option<&'static str> {
 }
 
 impl<'a> PointsFile<'a> {
-    /// Check the framing (magic, version, header checksum, directory) of a whole file.
+    /// Check the framing of a whole file: its start ([`FileStart`]), the point-set header,
+    /// the directory.
     pub fn read(bytes: &'a [u8], limits: Limits) -> Result<PointsFile<'a>> {
-        if bytes.len() < 16 {
-            if MAGIC.starts_with(&bytes[..bytes.len().min(8)]) {
-                return Err(Error::corrupt("file is truncated in the file start"));
-            }
-            return Err(Error::corrupt("not a vtz file (bad magic)"));
-        }
-        if bytes[..8] != MAGIC {
-            return Err(Error::corrupt("not a vtz file (bad magic)"));
-        }
-        let version = u16::from_le_bytes([bytes[8], bytes[9]]);
-        if version != VERSION_POINTS {
-            return Err(Error::unsupported(format!(
-                "vtz format version {version} is not a point set"
-            )));
-        }
-        let req = u16::from_le_bytes([bytes[10], bytes[11]]);
-        if req != 0 {
-            return Err(Error::unsupported(format!(
-                "required feature flags 0x{req:04x} are not known to this decoder"
-            )));
-        }
-        let hlen = u32::from_le_bytes([bytes[12], bytes[13], bytes[14], bytes[15]]) as u64;
-        if hlen > super::header::MAX_HEADER_LEN as u64 {
-            return Err(Error::corrupt("header length is over the limit"));
-        }
-        if 16 + hlen + 4 > bytes.len() as u64 {
-            return Err(Error::corrupt("file is truncated in the header"));
-        }
-        let hend = 16 + hlen as usize;
-        let crc = crc32fast::hash(&bytes[..hend]);
-        if !super::checksum_ok(crc, &bytes[hend..hend + 4]) {
-            return Err(Error::corrupt("header checksum mismatch"));
-        }
-        let header = PointsHeader::from_bytes(&bytes[16..hend], &limits)?;
         let mut cur = Cursor::new(bytes);
-        let entries = read_directory(
-            &mut cur,
-            hend as u64 + 4,
-            bytes.len() as u64,
-            &limits,
-            names,
-            "",
-        )?;
+        let start = FileStart::read(&mut cur, |version| {
+            if version != VERSION_POINTS {
+                return Err(Error::unsupported(format!(
+                    "vtz format version {version} is not a point set"
+                )));
+            }
+            Ok(())
+        })?;
+        let header = PointsHeader::from_bytes(&start.body, &limits)?;
+        let entries = read_directory(&mut cur, start.end(), start.file_len, &limits, names, "")?;
         Ok(PointsFile {
             bytes,
             header,

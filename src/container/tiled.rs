@@ -1,11 +1,12 @@
 //! Tiled files' framing (versions 2, 4 and 5): the tile grid, the global and tile blocks,
 //! and the tile index that a reader finds from the header (spec/FORMAT.md, "Version 2:
-//! tiled files", "Version 4", "Version 5").
+//! tiled files", "Version 4", "Version 5"); and the one reader of raster files
+//! ([`RasterReader`]), to which an untiled file (version 1) is a one-tile grid.
 
 use super::bytes::{ByteReader, PutLe};
 use super::{
-    ContainerReader, DIR_ENTRY_LEN, Header, KindNames, Limits, MAGIC, Section, SectionEntry,
-    SectionKind, checksum_ok, read_exact,
+    ContainerReader, DIR_ENTRY_LEN, FileStart, Header, KindNames, Limits, MAGIC, Section,
+    SectionEntry, SectionKind, checksum_ok,
 };
 use crate::error::{Error, Result};
 use crate::model::Window;
@@ -533,32 +534,6 @@ impl<W: Write + Seek> TiledWriter<W> {
     }
 }
 
-/// The version of a `.vtz` file (after checking its magic); the reader is left at the start.
-pub fn peek_version<R: Read + Seek>(inner: &mut R) -> Result<u16> {
-    let file_len = inner
-        .seek(SeekFrom::End(0))
-        .map_err(|e| Error::io("measuring the file", e))?;
-    inner
-        .seek(SeekFrom::Start(0))
-        .map_err(|e| Error::io("seeking", e))?;
-    let n = file_len.min(10) as usize;
-    let mut head = vec![0u8; n];
-    read_exact(inner, &mut head, "file start")?;
-    inner
-        .seek(SeekFrom::Start(0))
-        .map_err(|e| Error::io("seeking", e))?;
-    if n < 10 {
-        if MAGIC.starts_with(&head[..n.min(8)]) {
-            return Err(Error::corrupt("file is truncated in the file start"));
-        }
-        return Err(Error::corrupt("not a vtz file (bad magic)"));
-    }
-    if head[..8] != MAGIC {
-        return Err(Error::corrupt("not a vtz file (bad magic)"));
-    }
-    Ok(u16::from_le_bytes([head[8], head[9]]))
-}
-
 /// The index entry's fields both versions share, checked: the method, flags, valid count,
 /// range and max error of tile `k`.
 #[allow(clippy::too_many_arguments)]
@@ -871,10 +846,13 @@ fn read_cloud_index(
     Ok((tiles, global))
 }
 
-/// Reads a tiled file (version 2, 4 or 5): the header and the index on opening, then any
-/// tile on demand.
-pub struct TiledReader {
+/// Reads a raster file of any version as a grid of tiles. A tiled file (version 2, 4 or
+/// 5): its header and index on opening, then any tile on demand. An untiled file (version 1)
+/// is a one-tile grid whose tile is the file itself, read in place ([`RasterReader::whole`]):
+/// its header and directory on opening, its sections on demand.
+pub struct RasterReader {
     inner: Source,
+    version: u16,
     header: Header,
     grid: TileGrid,
     split: Option<u32>,
@@ -882,53 +860,54 @@ pub struct TiledReader {
     global: Vec<SectionEntry>,
     limits: Limits,
     names: KindNames,
+    /// Version 1: the file as its one tile's container.
+    whole: Option<ContainerReader<Source>>,
 }
 
-impl TiledReader {
-    /// Open a version-2, 4 or 5 file and check its framing: header checksum and
-    /// fields, the index's checksum, that the tile blocks lie back to back (version 2:
-    /// between the global sections and the index, which ends the file; version 4: after
-    /// the index and the global sections, the last ending the file; version 5: the heads
-    /// there, then the tails), each entry's fields.
+impl RasterReader {
+    /// Open a raster file and check its framing: the file's start ([`FileStart`]), then a
+    /// version-1 file's header and directory, or a tiled file's header checksum and fields,
+    /// the index's checksum, that the tile blocks lie back to back (version 2: between the
+    /// global sections and the index, which ends the file; version 4: after the index and
+    /// the global sections, the last ending the file; version 5: the heads there, then the
+    /// tails), each entry's fields.
     /// A version-4 or -5 file's header, index and global sections are usually inside the bytes
     /// the source read on opening ([`crate::source::HEAD_BYTES`]): no further read.
     pub fn new(mut inner: Source, limits: Limits, names: KindNames) -> Result<Self> {
-        let file_len = inner.len();
-        if file_len < 16 {
-            return Err(Error::corrupt("file is truncated in the file start"));
+        let start = FileStart::read(&mut inner, |version| match version {
+            super::VERSION | VERSION_TILED | VERSION_CLOUD | VERSION_HEADS => Ok(()),
+            super::points::VERSION_POINTS => Err(Error::unsupported(
+                "this is a point set (container version 3), not a raster: read it with \
+                 vtz::decode_points (the CLI decodes either)",
+            )),
+            v => Err(Error::unsupported(format!(
+                "vtz format version {v} (this decoder reads versions 1–5)"
+            ))),
+        })?;
+        let version = start.version;
+        if version == super::VERSION {
+            let whole = ContainerReader::after_start(inner.clone(), &start, limits, names)?;
+            let header = whole.header().clone();
+            return Ok(RasterReader {
+                inner,
+                version,
+                grid: TileGrid {
+                    width: header.width,
+                    height: header.height,
+                    tile_w: header.width,
+                    tile_h: header.height,
+                    margin: 0,
+                },
+                header,
+                split: None,
+                tiles: Vec::new(),
+                global: Vec::new(),
+                limits,
+                names,
+                whole: Some(whole),
+            });
         }
-        let fixed = inner.read_at(0..16)?;
-        if fixed[..8] != MAGIC {
-            return Err(Error::corrupt("not a vtz file (bad magic)"));
-        }
-        let version = u16::from_le_bytes([fixed[8], fixed[9]]);
-        if ![VERSION_TILED, VERSION_CLOUD, VERSION_HEADS].contains(&version) {
-            return Err(Error::unsupported(format!("vtz format version {version}")));
-        }
-        let req = u16::from_le_bytes([fixed[10], fixed[11]]);
-        if req != 0 {
-            return Err(Error::unsupported(format!(
-                "required feature flags 0x{req:04x} are not known to this decoder"
-            )));
-        }
-        let hlen = u32::from_le_bytes([fixed[12], fixed[13], fixed[14], fixed[15]]);
-        if hlen > super::header::MAX_HEADER_LEN {
-            return Err(Error::corrupt(format!(
-                "header length {hlen} is over the limit of {}",
-                super::header::MAX_HEADER_LEN
-            )));
-        }
-        if 16 + hlen as u64 + 4 > file_len {
-            return Err(Error::corrupt("file is truncated in the header"));
-        }
-        let hbuf = inner.read_at(16..16 + hlen as u64 + 4)?;
-        let (body, crc_bytes) = hbuf.split_at(hlen as usize);
-        let mut h = crc32fast::Hasher::new();
-        h.update(&fixed);
-        h.update(body);
-        if !checksum_ok(h.finalize(), crc_bytes) {
-            return Err(Error::corrupt("header checksum mismatch"));
-        }
+        let body = &start.body[..];
         let fields = match version {
             VERSION_HEADS => HEADS_FIELDS_LEN,
             VERSION_CLOUD => CLOUD_FIELDS_LEN,
@@ -949,7 +928,7 @@ impl TiledReader {
             tile_h: r.u32("tile height")?,
             margin: r.u32("margin")?,
         };
-        let after_header = 16 + hlen as u64 + 4;
+        let after_header = start.end();
         let mut split = None;
         let (tiles, global) = if version == VERSION_CLOUD || version == VERSION_HEADS {
             let index_len = r.u32("index length")? as u64;
@@ -1007,8 +986,9 @@ impl TiledReader {
             .iter()
             .filter_map(|t| t.range)
             .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)));
-        Ok(TiledReader {
+        Ok(RasterReader {
             inner,
+            version,
             header,
             grid,
             split,
@@ -1016,7 +996,47 @@ impl TiledReader {
             global,
             limits,
             names,
+            whole: None,
         })
+    }
+
+    /// A version-1 file's one tile, the file itself, read in place (`None` for a tiled file,
+    /// whose tiles are opened from their blocks, [`RasterReader::opener`]).
+    pub fn whole(&mut self) -> Option<&mut ContainerReader<Source>> {
+        self.whole.as_mut()
+    }
+    /// The container version.
+    pub fn version(&self) -> u16 {
+        self.version
+    }
+    /// Whether the file is tiled (version 2, 4 or 5).
+    pub fn tiled(&self) -> bool {
+        self.whole.is_none()
+    }
+    /// The file's own sections: a version-1 file's directory, a tiled file's global
+    /// sections.
+    pub fn sections(&self) -> &[SectionEntry] {
+        match &self.whole {
+            Some(w) => w.entries(),
+            None => &self.global,
+        }
+    }
+    /// The primary section of a version-1 file (a tiled file's are its tiles').
+    pub fn primary(&self) -> Option<usize> {
+        self.whole.as_ref().map(|w| w.header().primary as usize)
+    }
+    /// GDAL's metadata XML from the file's first gdal-metadata section, `None` when there is
+    /// none; not UTF-8 is a corrupt file.
+    pub fn gdal_metadata(&mut self) -> Result<Option<String>> {
+        if let Some(w) = &mut self.whole {
+            return w.read_gdal_metadata();
+        }
+        self.global_section(SectionKind::GDAL_METADATA)?
+            .map(|b| {
+                String::from_utf8(b)
+                    .map_err(|_| Error::corrupt("gdal-metadata section is not UTF-8"))
+            })
+            .transpose()
     }
 
     /// The raster's header (its range is the union of the tiles').
@@ -1032,13 +1052,9 @@ impl TiledReader {
     pub fn split(&self) -> Option<u32> {
         self.split
     }
-    /// The index.
+    /// The index (empty for a version-1 file, which has none).
     pub fn tiles(&self) -> &[TileEntry] {
         &self.tiles
-    }
-    /// The global sections' directory.
-    pub fn global(&self) -> &[SectionEntry] {
-        &self.global
     }
     /// The limits the file was opened with.
     pub fn limits(&self) -> &Limits {
@@ -1145,7 +1161,7 @@ impl TiledReader {
     }
 }
 
-/// Opens tiles whose blocks were read ([`TiledReader::tile_block`]).
+/// Opens tiles whose blocks were read ([`RasterReader::tile_block`]).
 #[derive(Clone, Copy)]
 pub struct TileOpener<'a> {
     header: &'a Header,

@@ -1,6 +1,7 @@
 //! The sites representation as the registry sees it: options, encode, decode, stats.
 
-use super::{SitesParams, SitesStats, decode_sites, default_threads, render, render_scaled, stats};
+use super::{SitesParams, SitesStats, decode_sites, render, render_scaled, stats};
+use crate::threads::default_threads;
 use crate::container::{Header, SectionKind};
 use crate::error::{Error, Result};
 use crate::methods::{

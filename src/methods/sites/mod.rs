@@ -581,7 +581,7 @@ pub fn render_scaled(
         }
     } else {
         use rayon::prelude::*;
-        let pool = crate::methods::thread_pool(threads)?;
+        let pool = crate::threads::thread_pool(threads)?;
         pool.install(|| {
             out.par_chunks_mut(chunk)
                 .zip(out_mask.par_chunks_mut(chunk))
@@ -590,13 +590,6 @@ pub fn render_scaled(
         });
     }
     Ok((out, out_mask, ow, oh))
-}
-
-/// Threads to use by default: what the machine offers, or the caller's budget
-/// ([`crate::methods::with_threads`]).
-pub fn default_threads() -> usize {
-    crate::methods::thread_budget()
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
 }
 
 /// The most frequent valid value when it covers at least 5 % of the valid samples.
@@ -729,7 +722,7 @@ pub fn encode(
             header,
             mask_vec.as_deref(),
             (0, 0, w, h),
-            default_threads(),
+            crate::threads::default_threads(),
             &|_| {},
         )?;
         let mut errs = Errors::default();

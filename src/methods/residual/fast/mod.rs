@@ -685,7 +685,7 @@ mod tests {
             }
             let max_bin = (p.hi - p.lo) as u64 / super::super::narrowest_bin(bin, 4, tighten) as u64 + 1;
             for threads in [1, 2, 3] {
-                let back = crate::methods::with_threads(threads, || {
+                let back = crate::threads::with_threads(threads, || {
                     decode(&mut ByteReader::new(&bytes, "t"), &p, &fixed_of(&p), 4, tighten, lanes, &wts, max_bin, 0..h, 0, None)
                 })
                 .unwrap()
@@ -771,7 +771,7 @@ mod tests {
                 windows.push(y0..y0 + len);
             }
             for threads in [1, 2] {
-                let pool = crate::methods::thread_pool(threads).unwrap();
+                let pool = crate::threads::thread_pool(threads).unwrap();
                 for rows in &windows {
                     let back = pool.install(|| dec(rows.clone())).unwrap_or_else(|e| panic!("{what}: rows {rows:?}: {e}"));
                     let span = rows.start * w..rows.end * w;
