@@ -219,11 +219,14 @@ impl<R: Read + Seek> Reader<R> {
         }
 
         // Infinite samples other than the nodata value are refused, the first one named by
-        // its place in the whole image.
-        if let Some(k) = data
-            .iter()
-            .position(|&v| v.is_infinite() && self.nodata != Some(v))
-        {
+        // its place in the whole image (integer samples never are).
+        let first_infinite = match self.sample_type.is_integer() {
+            true => None,
+            false => data
+                .iter()
+                .position(|&v| v.is_infinite() && self.nodata != Some(v)),
+        };
+        if let Some(k) = first_infinite {
             let i = y0 * w + k;
             return Err(Error::unsupported(format!(
                 "GeoTIFF sample {i} (row {}, col {}) is infinite (only finite values or nodata \
