@@ -14,6 +14,8 @@ use crate::testutil::{Rng, for_each_corpus};
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 use tiff::decoder::{Decoder, ifd::Value};
+use tiff::encoder::colortype::ColorType;
+use tiff::encoder::{Compression, Predictor, TiffEncoder, TiffValue};
 use tiff::tags::Tag;
 
 pub(super) const CORPUS_TIFS: &[&str] = &[
@@ -271,4 +273,43 @@ pub(super) fn stream_write_kind(r: &Raster, h: usize, big: Option<bool>) -> Vec<
         w.write_rows(&band).unwrap();
     }
     w.finish().unwrap().into_inner()
+}
+
+/// `input` with 1 to 4 random bytes set to 0, 0xff or a random value.
+pub(super) fn mutated(input: &[u8], rng: &mut Rng) -> Vec<u8> {
+    let mut m = input.to_vec();
+    for _ in 0..1 + rng.below(4) {
+        let i = rng.below(m.len() as u64) as usize;
+        m[i] = match rng.below(4) {
+            0 => 0,
+            1 => 0xff,
+            _ => rng.next() as u8,
+        };
+    }
+    m
+}
+
+/// A `w × h` TIFF of `vals` written by the `tiff` crate in strips of `rows` rows with
+/// `compression`, the horizontal predictor with LZW (a layout vtz's writers do not make).
+pub(super) fn tiff_crate_strips<C: ColorType>(
+    w: u32,
+    h: u32,
+    rows: u32,
+    compression: Compression,
+    vals: &[C::Inner],
+) -> Vec<u8>
+where
+    [C::Inner]: TiffValue,
+{
+    let mut out = Cursor::new(Vec::new());
+    let mut enc = TiffEncoder::new(&mut out)
+        .unwrap()
+        .with_compression(compression);
+    if compression == Compression::Lzw {
+        enc = enc.with_predictor(Predictor::Horizontal);
+    }
+    let mut img = enc.new_image::<C>(w, h).unwrap();
+    img.rows_per_strip(rows).unwrap();
+    img.write_data(vals).unwrap();
+    out.into_inner()
 }

@@ -496,15 +496,7 @@ mod tests {
         let mut rng = Rng(0xdead_beef);
         for input in &inputs {
             for _ in 0..iters {
-                let mut m = input.clone();
-                for _ in 0..1 + rng.below(4) {
-                    let i = rng.below(m.len() as u64) as usize;
-                    m[i] = match rng.below(4) {
-                        0 => 0,
-                        1 => 0xff,
-                        _ => rng.next() as u8,
-                    };
-                }
+                let m = mutated(input, &mut rng);
                 // Any result is fine; it must not panic or allocate wildly.
                 let _ = read(&m, &opts());
             }

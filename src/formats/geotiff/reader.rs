@@ -377,8 +377,8 @@ mod tests {
     };
     use crate::model::{RasterType, Window};
     use crate::testutil::{Rng, corpus};
+    use tiff::encoder::Compression;
     use tiff::encoder::colortype::{Gray16, GrayI16, GrayI32};
-    use tiff::encoder::{Compression, Predictor, TiffEncoder};
 
     // ----- corpus -----------------------------------------------------------------------
 
@@ -489,17 +489,8 @@ mod tests {
         // Written by the tiff crate with LZW and several strips, int32 and uint8.
         let (w, h) = (40u32, 33u32);
         let vals: Vec<i32> = (0..w * h).map(|i| (i as i32 - 600) * 1000).collect();
-        let mut out = Cursor::new(Vec::new());
-        {
-            let mut enc = TiffEncoder::new(&mut out)
-                .unwrap()
-                .with_compression(Compression::Lzw)
-                .with_predictor(Predictor::Horizontal);
-            let mut img = enc.new_image::<GrayI32>(w, h).unwrap();
-            img.rows_per_strip(4).unwrap();
-            img.write_data(&vals).unwrap();
-        }
-        let r = read(out.get_ref(), &opts()).unwrap();
+        let out = tiff_crate_strips::<GrayI32>(w, h, 4, Compression::Lzw, &vals);
+        let r = read(&out, &opts()).unwrap();
         assert_eq!(r.sample_type, SampleType::I32);
         assert_eq!(
             r.data,
@@ -507,32 +498,11 @@ mod tests {
         );
 
         // Hand-made tiles (2x2 tiles of 4x4 over a 6x5 image, uncompressed).
-        let (w, h, t) = (6usize, 5usize, 4usize);
-        let value = |x: usize, y: usize| (y * 10 + x) as i16;
-        let mut data = Vec::new();
-        let mut offsets = Vec::new();
-        for ty in 0..2 {
-            for tx in 0..2 {
-                offsets.push(8 + data.len() as u32);
-                for y in 0..t {
-                    for x in 0..t {
-                        let (gx, gy) = (tx * t + x, ty * t + y);
-                        let v = if gx < w && gy < h { value(gx, gy) } else { 0 };
-                        data.extend_from_slice(&v.to_le_bytes());
-                    }
-                }
-            }
-        }
-        let mut b = Builder::basic(true, w as u32, h as u32, 16, 2, 0);
-        b.remove(TAG_STRIP_OFFSETS)
-            .remove(TAG_STRIP_BYTE_COUNTS)
-            .remove(TAG_ROWS_PER_STRIP)
-            .long(TAG_TILE_WIDTH, &[t as u32])
-            .long(TAG_TILE_LENGTH, &[t as u32])
-            .long(TAG_TILE_OFFSETS, &offsets)
-            .long(TAG_TILE_BYTE_COUNTS, &[32; 4]);
-        let r = read(&b.build(&data), &opts()).unwrap();
-        let want: Vec<f64> = (0..w * h).map(|i| f64::from(value(i % w, i / w))).collect();
+        let (w, h) = (6, 5);
+        let r = read(&handmade_tiled(true, w, h, 4, 4), &opts()).unwrap();
+        let want: Vec<f64> = (0..w * h)
+            .map(|i| f64::from(tiled_value(i % w, i / w)))
+            .collect();
         assert_eq!(r.data, want);
     }
 
@@ -607,32 +577,15 @@ mod tests {
         // The tiff crate, LZW with small strips, int16 and uint16.
         let (w, h) = (97u32, 61u32);
         let vals: Vec<i16> = (0..w * h).map(|i| (i as i16).wrapping_mul(37)).collect();
-        let mut out = Cursor::new(Vec::new());
-        {
-            let mut enc = TiffEncoder::new(&mut out)
-                .unwrap()
-                .with_compression(Compression::Lzw)
-                .with_predictor(Predictor::Horizontal);
-            let mut img = enc.new_image::<GrayI16>(w, h).unwrap();
-            img.rows_per_strip(5).unwrap();
-            img.write_data(&vals).unwrap();
-        }
-        let whole = read(out.get_ref(), &opts()).unwrap();
-        let (_d, path) = temp_file(out.get_ref());
+        let out = tiff_crate_strips::<GrayI16>(w, h, 5, Compression::Lzw, &vals);
+        let whole = read(&out, &opts()).unwrap();
+        let (_d, path) = temp_file(&out);
         check_stream_equals_read(&path, &whole, "LZW strips of 5 rows");
 
         let vals: Vec<u16> = (0..w * h).map(|i| (i * 13) as u16).collect();
-        let mut out = Cursor::new(Vec::new());
-        {
-            let mut enc = TiffEncoder::new(&mut out)
-                .unwrap()
-                .with_compression(Compression::Packbits);
-            let mut img = enc.new_image::<Gray16>(w, h).unwrap();
-            img.rows_per_strip(1).unwrap();
-            img.write_data(&vals).unwrap();
-        }
-        let whole = read(out.get_ref(), &opts()).unwrap();
-        let (_d, path) = temp_file(out.get_ref());
+        let out = tiff_crate_strips::<Gray16>(w, h, 1, Compression::Packbits, &vals);
+        let whole = read(&out, &opts()).unwrap();
+        let (_d, path) = temp_file(&out);
         check_stream_equals_read(&path, &whole, "PackBits strips of 1 row");
 
         // Hand-made big-endian strips of 4 rows.
@@ -650,10 +603,14 @@ mod tests {
         check_stream_equals_read(&path, &whole, "big-endian strips of 4 rows");
     }
 
+    /// The sample at `(x, y)` of [`handmade_tiled`]'s TIFFs (-1000 is their nodata).
+    fn tiled_value(x: usize, y: usize) -> i16 {
+        ((y * 131 + x * 7) % 2000) as i16 - 1000
+    }
+
     /// A hand-made uncompressed tiled int16 TIFF (tiles `tw × th`) with a nodata value, in
     /// little- or big-endian byte order.
     fn handmade_tiled(le: bool, w: usize, h: usize, tw: usize, th: usize) -> Vec<u8> {
-        let value = |x: usize, y: usize| ((y * 131 + x * 7) % 2000) as i16 - 1000;
         let (across, down) = (w.div_ceil(tw), h.div_ceil(th));
         let mut data = Vec::new();
         let mut offsets = Vec::new();
@@ -663,7 +620,11 @@ mod tests {
                 for y in 0..th {
                     for x in 0..tw {
                         let (gx, gy) = (tx * tw + x, ty * th + y);
-                        let v = if gx < w && gy < h { value(gx, gy) } else { 0 };
+                        let v = if gx < w && gy < h {
+                            tiled_value(gx, gy)
+                        } else {
+                            0
+                        };
                         data.extend_from_slice(&i16_bytes(le, &[v]));
                     }
                 }
@@ -867,15 +828,7 @@ mod tests {
         let mut rng = Rng(0x5eed);
         for input in &inputs {
             for _ in 0..150 {
-                let mut m = input.clone();
-                for _ in 0..1 + rng.below(4) {
-                    let i = rng.below(m.len() as u64) as usize;
-                    m[i] = match rng.below(4) {
-                        0 => 0,
-                        1 => 0xff,
-                        _ => rng.next() as u8,
-                    };
-                }
+                let m = mutated(input, &mut rng);
                 std::fs::write(&path, &m).unwrap();
                 let streamed = stream_all(&path);
                 match (read(&m, &opts()), streamed) {
