@@ -534,7 +534,7 @@ mod tests {
 
     /// Read the file at `path` through `Reader` in bands of `h` rows (in order, then in
     /// reverse), each compared with `read` of the same bytes.
-    fn check_stream_equals_read(path: &Path, whole: &Raster, what: &str) {
+    fn check_bands_equal_read(path: &Path, whole: &Raster, what: &str) {
         for h in [1, 7, 256, whole.height] {
             let mut s = Reader::open(path, &opts()).unwrap();
             assert_eq!((s.width(), s.height()), (whole.width, whole.height));
@@ -550,7 +550,7 @@ mod tests {
     #[test]
     fn reader_equals_read_on_the_corpus() {
         for_each_corpus_tif(|dir, name, _, whole| {
-            check_stream_equals_read(&dir.join(format!("{name}.tif")), &whole, name);
+            check_bands_equal_read(&dir.join(format!("{name}.tif")), &whole, name);
         });
     }
 
@@ -572,7 +572,7 @@ mod tests {
             let bytes = write(&r).unwrap();
             let whole = read(&bytes, &opts()).unwrap();
             let (_d, path) = temp_file(&bytes);
-            check_stream_equals_read(&path, &whole, &format!("{} striped", st.name()));
+            check_bands_equal_read(&path, &whole, &format!("{} striped", st.name()));
         }
         // The tiff crate, LZW with small strips, int16 and uint16.
         let (w, h) = (97u32, 61u32);
@@ -580,13 +580,13 @@ mod tests {
         let out = tiff_crate_strips::<GrayI16>(w, h, 5, Compression::Lzw, &vals);
         let whole = read(&out, &opts()).unwrap();
         let (_d, path) = temp_file(&out);
-        check_stream_equals_read(&path, &whole, "LZW strips of 5 rows");
+        check_bands_equal_read(&path, &whole, "LZW strips of 5 rows");
 
         let vals: Vec<u16> = (0..w * h).map(|i| (i * 13) as u16).collect();
         let out = tiff_crate_strips::<Gray16>(w, h, 1, Compression::Packbits, &vals);
         let whole = read(&out, &opts()).unwrap();
         let (_d, path) = temp_file(&out);
-        check_stream_equals_read(&path, &whole, "PackBits strips of 1 row");
+        check_bands_equal_read(&path, &whole, "PackBits strips of 1 row");
 
         // Hand-made big-endian strips of 4 rows.
         let (w, h) = (7usize, 10usize);
@@ -600,7 +600,7 @@ mod tests {
         let whole = read(&bytes, &opts()).unwrap();
         assert_eq!(whole.data[1], -8700.0);
         let (_d, path) = temp_file(&bytes);
-        check_stream_equals_read(&path, &whole, "big-endian strips of 4 rows");
+        check_bands_equal_read(&path, &whole, "big-endian strips of 4 rows");
     }
 
     /// The sample at `(x, y)` of [`handmade_tiled`]'s TIFFs (-1000 is their nodata).
@@ -655,7 +655,7 @@ mod tests {
             let bytes = stream_write(&r, 100);
             let whole = read(&bytes, &opts()).unwrap();
             let (_d, path) = temp_file(&bytes);
-            check_stream_equals_read(&path, &whole, &format!("{} tiled", st.name()));
+            check_bands_equal_read(&path, &whole, &format!("{} tiled", st.name()));
         }
         // Our own output as BigTIFF.
         let r = synthetic(SampleType::F32, 300, 270, Some(-9999.0), 77);
@@ -663,7 +663,7 @@ mod tests {
         assert_eq!(&bytes[..4], b"II+\0");
         let whole = read(&bytes, &opts()).unwrap();
         let (_d, path) = temp_file(&bytes);
-        check_stream_equals_read(&path, &whole, "BigTIFF");
+        check_bands_equal_read(&path, &whole, "BigTIFF");
         // Hand-made tiles, smaller than and larger than the image, several per row, in both
         // byte orders.
         for le in [true, false] {
@@ -673,7 +673,7 @@ mod tests {
                 assert!(whole.mask.is_some());
                 let (_d, path) = temp_file(&bytes);
                 let what = format!("{w}x{h} in {tw}x{th} tiles, le {le}");
-                check_stream_equals_read(&path, &whole, &what);
+                check_bands_equal_read(&path, &whole, &what);
             }
         }
     }
@@ -757,7 +757,7 @@ mod tests {
     #[test]
     fn tag_values_are_read_as_read_reads_them() {
         // The `tiff` decoder reads an ASCII value kept in its entry differently from one stored
-        // apart (NUL handling, non-ASCII text); the stream must follow `read` either way.
+        // apart (NUL handling, non-ASCII text); bands of the file on disk must follow `read` of its bytes either way.
         let metadata: [&[u8]; 7] = [
             b"ab\0cd\0",
             "Höh\0".as_bytes(),
@@ -775,11 +775,11 @@ mod tests {
                 b.set(TAG_GDAL_NODATA, 2, 6, b"-9999 ".to_vec());
                 let bytes = b.build(&i16_bytes(le, &vals));
                 let (_d, path) = temp_file(&bytes);
-                let streamed = Reader::open(&path, &opts()).and_then(|mut s| s.band(0, 2));
-                match (read(&bytes, &opts()), streamed) {
+                let banded = Reader::open(&path, &opts()).and_then(|mut s| s.band(0, 2));
+                match (read(&bytes, &opts()), banded) {
                     (Ok(whole), Ok(band)) => assert_band(&band, &whole, 0, &format!("{k}")),
                     (Err(a), Err(b)) => assert_eq!(a.to_string(), b.to_string(), "{k}"),
-                    (a, b) => panic!("{k}: read {a:?}, stream {b:?}"),
+                    (a, b) => panic!("{k}: read {a:?}, bands {b:?}"),
                 }
             }
         }
@@ -790,11 +790,11 @@ mod tests {
         let whole = read(&bytes, &opts()).unwrap();
         assert_eq!(whole.gdal_metadata.as_deref(), Some("abcdef"));
         let (_d, path) = temp_file(&bytes);
-        check_stream_equals_read(&path, &whole, "short metadata in a BigTIFF");
+        check_bands_equal_read(&path, &whole, "short metadata in a BigTIFF");
     }
 
-    /// Everything the stream gives for the file, or its first error.
-    fn stream_all(path: &Path) -> Result<Vec<Raster>> {
+    /// The file read from disk in bands of 5 rows, or its first error.
+    fn bands_of_file(path: &Path) -> Result<Vec<Raster>> {
         let mut s = Reader::open(path, &opts())?;
         let mut out = Vec::new();
         for y0 in (0..s.height()).step_by(5) {
@@ -821,24 +821,24 @@ mod tests {
             for k in 0..40 {
                 let len = input.len() * k / 40;
                 std::fs::write(&path, &input[..len]).unwrap();
-                assert!(stream_all(&path).is_err(), "truncated to {len}");
+                assert!(bands_of_file(&path).is_err(), "truncated to {len}");
             }
         }
-        // Mutations: the stream and `read` agree on success, and on the samples.
+        // Mutations: the bands and `read` of the bytes agree on success, and on the samples.
         let mut rng = Rng(0x5eed);
         for input in &inputs {
             for _ in 0..150 {
                 let m = mutated(input, &mut rng);
                 std::fs::write(&path, &m).unwrap();
-                let streamed = stream_all(&path);
-                match (read(&m, &opts()), streamed) {
+                let banded = bands_of_file(&path);
+                match (read(&m, &opts()), banded) {
                     (Ok(whole), Ok(bands)) => {
                         for (b, band) in bands.iter().enumerate() {
                             assert_band(band, &whole, b * 5, "mutated");
                         }
                     }
                     (Err(_), Err(_)) => {}
-                    (a, b) => panic!("read {:?}, stream {:?}", a.map(|_| ()), b.map(|_| ())),
+                    (a, b) => panic!("read {:?}, bands {:?}", a.map(|_| ()), b.map(|_| ())),
                 }
             }
         }
