@@ -190,7 +190,7 @@ pub fn open_source(path: &Path, opts: &ReadOptions) -> Result<Box<dyn crate::mod
                 ..opts.clone()
             };
             Ok(Box::new(
-                geotiff::StreamReader::open(path, &o).map_err(|e| e.context(&ctx))?,
+                geotiff::Reader::open(path, &o).map_err(|e| e.context(&ctx))?,
             ))
         }
         Format::Vtz => Err(not_here()),

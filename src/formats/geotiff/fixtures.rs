@@ -1,6 +1,7 @@
-//! Test fixtures: a hand-built classic TIFF writer, small rasters, raw tags, a bitwise comparison.
+//! Test fixtures: a hand-built classic TIFF writer, small and synthetic rasters, raw tags, a
+//! bitwise comparison, the streaming writer's output, temporary files.
 
-use super::read;
+use super::{StreamWriter, read};
 use super::{
     TAG_BITS_PER_SAMPLE, TAG_COMPRESSION, TAG_IMAGE_LENGTH, TAG_IMAGE_WIDTH, TAG_PHOTOMETRIC,
     TAG_ROWS_PER_STRIP, TAG_SAMPLE_FORMAT, TAG_SAMPLES_PER_PIXEL, TAG_STRIP_BYTE_COUNTS,
@@ -8,11 +9,13 @@ use super::{
 };
 use crate::error::Error;
 use crate::formats::ReadOptions;
-use crate::model::{Georef, Raster, RasterType, SampleType};
-use crate::testutil::for_each_corpus;
+use crate::model::{Georef, Raster, RasterType, SampleType, Window};
+use crate::testutil::{Rng, for_each_corpus};
 use std::io::Cursor;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use tiff::decoder::{Decoder, ifd::Value};
+use tiff::encoder::colortype::ColorType;
+use tiff::encoder::{Compression, Predictor, TiffEncoder, TiffValue};
 use tiff::tags::Tag;
 
 pub(super) const CORPUS_TIFS: &[&str] = &[
@@ -204,4 +207,109 @@ pub(super) fn fp_predict_row(row: &[f32]) -> Vec<u8> {
         s[i] = s[i].wrapping_sub(s[i - 1]);
     }
     s
+}
+
+/// `bytes` as a file in a fresh temporary directory.
+pub(super) fn temp_file(bytes: &[u8]) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("t.tif");
+    std::fs::write(&path, bytes).unwrap();
+    (dir, path)
+}
+
+/// A raster of type `st` with holes (as nodata when given, else NaN) and a georef.
+pub(super) fn synthetic(
+    st: SampleType,
+    w: usize,
+    h: usize,
+    nodata: Option<f64>,
+    seed: u64,
+) -> Raster {
+    let mut rng = Rng(seed);
+    // Inside the type's range, off its ends (the fill values of integer holes).
+    let (lo, hi) = st
+        .int_range()
+        .map_or((-1e5, 1e5), |(lo, hi)| (lo + 1.0, hi - 1.0));
+    let data: Vec<f64> = (0..w * h)
+        .map(|i| {
+            if rng.below(9) == 0 {
+                return nodata.unwrap_or(f64::NAN);
+            }
+            // A smooth surface plus noise, within the type's range.
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            let v = (x * 0.05).sin() * 0.3 + (y * 0.031).cos() * 0.2 + 0.5;
+            let v = lo + (hi - lo) * v.clamp(0.0, 1.0);
+            match st {
+                SampleType::F32 => f64::from((v + rng.below(100) as f64 * 0.01) as f32),
+                SampleType::F64 => v + rng.below(100) as f64 * 1e-3,
+                _ => v.round().clamp(lo, hi) + 0.0,
+            }
+        })
+        .collect();
+    let mut r = Raster::from_values(w, h, data, nodata, st).unwrap();
+    r.georef = Some(small_georef(Some(32611)));
+    r.gdal_metadata = Some("<GDALMetadata>\n  <Item name=\"x\">y</Item>\n</GDALMetadata>\n".into());
+    r
+}
+
+/// `r` through `StreamWriter` in bands of `h` rows.
+pub(super) fn stream_write(r: &Raster, h: usize) -> Vec<u8> {
+    stream_write_kind(r, h, None)
+}
+
+/// `r` through `StreamWriter` in bands of `h` rows, BigTIFF when `big` says.
+pub(super) fn stream_write_kind(r: &Raster, h: usize, big: Option<bool>) -> Vec<u8> {
+    let out = Cursor::new(Vec::new());
+    let mut w = StreamWriter::with_kind(out, r.width, r.height, r, big).unwrap();
+    for y0 in (0..r.height).step_by(h) {
+        let rows = h.min(r.height - y0);
+        let mut band = r.crop(Window {
+            x: 0,
+            y: y0,
+            width: r.width,
+            height: rows,
+        });
+        band.normalize_mask();
+        w.write_rows(&band).unwrap();
+    }
+    w.finish().unwrap().into_inner()
+}
+
+/// `input` with 1 to 4 random bytes set to 0, 0xff or a random value.
+pub(super) fn mutated(input: &[u8], rng: &mut Rng) -> Vec<u8> {
+    let mut m = input.to_vec();
+    for _ in 0..1 + rng.below(4) {
+        let i = rng.below(m.len() as u64) as usize;
+        m[i] = match rng.below(4) {
+            0 => 0,
+            1 => 0xff,
+            _ => rng.next() as u8,
+        };
+    }
+    m
+}
+
+/// A `w × h` TIFF of `vals` written by the `tiff` crate in strips of `rows` rows with
+/// `compression`, the horizontal predictor with LZW (a layout vtz's writers do not make).
+pub(super) fn tiff_crate_strips<C: ColorType>(
+    w: u32,
+    h: u32,
+    rows: u32,
+    compression: Compression,
+    vals: &[C::Inner],
+) -> Vec<u8>
+where
+    [C::Inner]: TiffValue,
+{
+    let mut out = Cursor::new(Vec::new());
+    let mut enc = TiffEncoder::new(&mut out)
+        .unwrap()
+        .with_compression(compression);
+    if compression == Compression::Lzw {
+        enc = enc.with_predictor(Predictor::Horizontal);
+    }
+    let mut img = enc.new_image::<C>(w, h).unwrap();
+    img.rows_per_strip(rows).unwrap();
+    img.write_data(vals).unwrap();
+    out.into_inner()
 }

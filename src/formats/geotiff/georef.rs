@@ -1,15 +1,15 @@
 //! The georeferencing tags ↔ [`Georef`]: pixel scale, tiepoint, transformation, GeoKeys; both ways.
 
 use super::nodata::format_nodata;
-use super::tags::{Dec, enc_err, tag_string, tiff_err, write_ascii};
+use super::tags::{enc_err, tag_string, tiff_err, write_ascii};
 use super::{
     TAG_GDAL_METADATA, TAG_GEO_ASCII_PARAMS, TAG_GEO_DOUBLE_PARAMS, TAG_MODEL_PIXEL_SCALE,
     TAG_MODEL_TIEPOINT, TAG_MODEL_TRANSFORMATION,
 };
 use crate::error::{Error, Result};
 use crate::model::{GeoKeys, Georef, RasterType};
-use std::io::{Seek, Write};
-use tiff::decoder::ifd::Value;
+use std::io::{Read, Seek, Write};
+use tiff::decoder::{Decoder, ifd::Value};
 use tiff::encoder::{DirectoryEncoder, TiffKind};
 use tiff::tags::Tag;
 
@@ -38,7 +38,7 @@ fn scalar_f64(v: Value) -> Option<f64> {
 }
 
 /// A numeric tag as doubles (GeoTIFF tags are DOUBLE; FLOAT and integers are accepted too).
-fn tag_f64s(dec: &mut Dec<'_>, tag: u16) -> Result<Option<Vec<f64>>> {
+fn tag_f64s<R: Read + Seek>(dec: &mut Decoder<R>, tag: u16) -> Result<Option<Vec<f64>>> {
     let Some(v) = dec
         .find_tag(Tag::from_u16_exhaustive(tag))
         .map_err(tiff_err)?
@@ -72,7 +72,7 @@ fn geokey_short(dir: &[u16], key: u16) -> Option<u16> {
         .map(|k| k[3])
 }
 
-pub(super) fn read_georef(dec: &mut Dec<'_>) -> Result<Option<Georef>> {
+pub(super) fn read_georef<R: Read + Seek>(dec: &mut Decoder<R>) -> Result<Option<Georef>> {
     let scale = tag_f64s(dec, TAG_MODEL_PIXEL_SCALE)?;
     let tie = tag_f64s(dec, TAG_MODEL_TIEPOINT)?;
     let transform = tag_f64s(dec, TAG_MODEL_TRANSFORMATION)?;

@@ -4,9 +4,9 @@
 //! GDAL stores it as another image directory of the same size as the image, with
 //! NewSubfileType bit 4 (transparency mask) set and bit 1 (reduced resolution) clear,
 //! PhotometricInterpretation 4, one sample of 1 bit (rarely 8), in strips or tiles, most often
-//! Deflate- or PackBits-compressed. A sample is valid where its mask sample is non-zero. Both
-//! GeoTIFF readers (`read`, whole file, and `stream`, by bands of rows) take it from here, so
-//! the masked samples are invalid in either: they become nodata, as GDAL, QGIS and rasterio
+//! Deflate- or PackBits-compressed. A sample is valid where its mask sample is non-zero. The
+//! GeoTIFF reader takes it from here, band by band like the samples, so the masked samples are
+//! invalid however the file is read: they become nodata, as GDAL, QGIS and rasterio
 //! treat them. The reduced-resolution masks of overviews are not read (nor are overviews).
 //!
 //! Everything is checked before use: the directory chain (no cycles, at most
@@ -14,9 +14,9 @@
 //! exactly its size. A mask vtz cannot decode (another compression, a predictor) is refused
 //! with a one-line error naming the mask, never skipped.
 
+use super::ifd::{self, Order, Source, type_size};
 use crate::error::{Error, Result};
-use std::fs::File;
-use std::io::{Read, Seek, SeekFrom};
+use std::io::Read;
 
 /// Image directories walked looking for the mask (a COG with many overview levels and their
 /// masks has a few dozen).
@@ -41,140 +41,63 @@ const TAG_TILE_BYTE_COUNTS: u16 = 325;
 const FILETYPE_REDUCED: u64 = 1;
 const FILETYPE_MASK: u64 = 4;
 
-/// Random access to the file's bytes (the whole file in memory, or the open file).
-pub(super) trait ReadAt {
-    /// The file's length in bytes.
-    fn len(&self) -> u64;
-    /// `n` bytes at `pos` (the caller checked that they lie inside the file).
-    fn read_at(&mut self, pos: u64, n: usize) -> Result<Vec<u8>>;
-}
-
-/// A file held in memory.
-pub(super) struct InMemory<'a>(pub(super) &'a [u8]);
-
-impl ReadAt for InMemory<'_> {
-    fn len(&self) -> u64 {
-        self.0.len() as u64
-    }
-    fn read_at(&mut self, pos: u64, n: usize) -> Result<Vec<u8>> {
-        usize::try_from(pos)
-            .ok()
-            .and_then(|p| self.0.get(p..p.checked_add(n)?))
-            .map(<[u8]>::to_vec)
-            .ok_or_else(truncated)
-    }
-}
-
-/// An open file.
-pub(super) struct OnDisk {
-    pub(super) file: File,
-    pub(super) len: u64,
-}
-
-impl ReadAt for OnDisk {
-    fn len(&self) -> u64 {
-        self.len
-    }
-    fn read_at(&mut self, pos: u64, n: usize) -> Result<Vec<u8>> {
-        if pos.checked_add(n as u64).is_none_or(|end| end > self.len) {
-            return Err(truncated());
-        }
-        let io = |e| Error::io("GeoTIFF mask band", e);
-        self.file.seek(SeekFrom::Start(pos)).map_err(io)?;
-        let mut b = vec![0u8; n];
-        self.file.read_exact(&mut b).map_err(io)?;
-        Ok(b)
-    }
-}
-
 fn truncated() -> Error {
     Error::corrupt("GeoTIFF is truncated (in its mask band)")
 }
 
-/// Byte order and offset size, with readers in that order.
-#[derive(Clone, Copy)]
-struct Order {
-    le: bool,
-    big: bool,
-}
+/// The tags read here.
+const MASK_TAGS: &[u16] = &[
+    TAG_NEW_SUBFILE_TYPE,
+    TAG_IMAGE_WIDTH,
+    TAG_IMAGE_LENGTH,
+    TAG_BITS_PER_SAMPLE,
+    TAG_COMPRESSION,
+    TAG_STRIP_OFFSETS,
+    TAG_SAMPLES_PER_PIXEL,
+    TAG_ROWS_PER_STRIP,
+    TAG_STRIP_BYTE_COUNTS,
+    TAG_PREDICTOR,
+    TAG_TILE_WIDTH,
+    TAG_TILE_LENGTH,
+    TAG_TILE_OFFSETS,
+    TAG_TILE_BYTE_COUNTS,
+];
 
-impl Order {
-    fn uint(self, b: &[u8]) -> u64 {
-        let mut v = 0u64;
-        if self.le {
-            for &x in b.iter().rev() {
-                v = (v << 8) | u64::from(x);
-            }
-        } else {
-            for &x in b {
-                v = (v << 8) | u64::from(x);
-            }
-        }
-        v
-    }
-}
-
-/// One directory's entries: tag → (type, count, where the values start).
+/// One directory's entries of [`MASK_TAGS`]: tag → (type, count, where the values start).
 struct Directory {
     entries: Vec<(u16, u16, u64, u64)>,
     next: u64,
 }
 
-fn read_directory(src: &mut dyn ReadAt, o: Order, pos: u64) -> Result<Directory> {
-    let (count_len, entry_len, inline, next_len) = if o.big {
-        (8u64, 20u64, 8u64, 8usize)
-    } else {
-        (2, 12, 4, 4)
-    };
-    if pos.checked_add(count_len).is_none_or(|e| e > src.len()) {
-        return Err(truncated());
-    }
-    let count = o.uint(&src.read_at(pos, count_len as usize)?);
-    let size = count
-        .checked_mul(entry_len)
-        .and_then(|n| n.checked_add(count_len + next_len as u64))
-        .filter(|&n| pos.checked_add(n).is_some_and(|e| e <= src.len()))
+/// The directory at `pos`, its entries and the pointer to the next one checked to lie inside
+/// the file.
+fn read_directory(src: &mut Source<'_>, o: Order, pos: u64) -> Result<Directory> {
+    let dir = ifd::directory(src, o, pos)?.ok_or_else(truncated)?;
+    let end = dir
+        .end(o)
+        .and_then(|end| end.checked_add(o.word()))
+        .filter(|&end| end <= src.len())
         .ok_or_else(truncated)?;
-    let raw = src.read_at(pos, size as usize)?;
-    let mut entries = Vec::with_capacity(count as usize);
-    for k in 0..count as usize {
-        let e = &raw[count_len as usize + k * entry_len as usize..][..entry_len as usize];
-        let tag = o.uint(&e[0..2]) as u16;
-        let typ = o.uint(&e[2..4]) as u16;
-        let (n, field) = if o.big {
-            (o.uint(&e[4..12]), &e[12..20])
-        } else {
-            (o.uint(&e[4..8]), &e[8..12])
+    let mut entries = Vec::new();
+    dir.entries(src, o, |e| {
+        let Some(width) = type_size(e.typ) else {
+            return Ok(()); // a type no tag read here has
         };
-        let Some(width) = type_width(typ) else {
-            continue; // a type no tag read here has
-        };
-        let len = width.checked_mul(n).ok_or_else(truncated)?;
-        let data = if len <= inline {
-            pos + count_len + (k as u64) * entry_len + if o.big { 12 } else { 8 }
-        } else {
-            o.uint(field)
-        };
-        entries.push((tag, typ, n, data));
-    }
-    let next = o.uint(&raw[raw.len() - next_len..]);
+        let len = width.checked_mul(e.count).ok_or_else(truncated)?;
+        if !MASK_TAGS.contains(&e.tag) {
+            return Ok(());
+        }
+        entries.push((e.tag, e.typ, e.count, e.data_pos(o, len)));
+        Ok(())
+    })?;
+    let next = o.uint(&src.read_at(end - o.word(), o.word() as usize)?);
     Ok(Directory { entries, next })
-}
-
-fn type_width(typ: u16) -> Option<u64> {
-    Some(match typ {
-        1 | 2 | 6 | 7 => 1,
-        3 | 8 => 2,
-        4 | 9 | 11 | 13 => 4,
-        5 | 10 | 12 | 16 | 17 | 18 => 8,
-        _ => return None,
-    })
 }
 
 impl Directory {
     /// The unsigned values of `tag` (BYTE, SHORT, LONG, LONG8), checked to lie in the file;
     /// `None` when absent.
-    fn uints(&self, src: &mut dyn ReadAt, o: Order, tag: u16) -> Result<Option<Vec<u64>>> {
+    fn uints(&self, src: &mut Source<'_>, o: Order, tag: u16) -> Result<Option<Vec<u64>>> {
         let Some(&(_, typ, n, pos)) = self.entries.iter().find(|e| e.0 == tag) else {
             return Ok(None);
         };
@@ -200,7 +123,7 @@ impl Directory {
         ))
     }
 
-    fn scalar(&self, src: &mut dyn ReadAt, o: Order, tag: u16) -> Result<Option<u64>> {
+    fn scalar(&self, src: &mut Source<'_>, o: Order, tag: u16) -> Result<Option<u64>> {
         Ok(self.uints(src, o, tag)?.and_then(|v| v.first().copied()))
     }
 }
@@ -220,23 +143,15 @@ pub(super) struct Mask {
     counts: Vec<u64>,
 }
 
-/// The internal mask band of the first image (`width × height`) of a TIFF, if it has one.
-pub(super) fn find(src: &mut dyn ReadAt, width: usize, height: usize) -> Result<Option<Mask>> {
-    let n = src.len().min(16) as usize;
-    let head = src.read_at(0, n)?;
-    let le = match head.get(..2) {
-        Some(b"II") => true,
-        Some(b"MM") => false,
-        _ => return Err(truncated()),
-    };
-    let mut o = Order { le, big: false };
-    let version = o.uint(head.get(2..4).ok_or_else(truncated)?);
-    let first = if version == 43 {
-        o.big = true;
-        o.uint(head.get(8..16).ok_or_else(truncated)?)
-    } else {
-        o.uint(head.get(4..8).ok_or_else(truncated)?)
-    };
+/// The internal mask band of the first image (`width × height`) of a TIFF of byte order and
+/// kind `o` whose first directory is at `first` (as the pre-pass found them), if it has one.
+pub(super) fn find(
+    src: &mut Source<'_>,
+    o: Order,
+    first: u64,
+    width: usize,
+    height: usize,
+) -> Result<Option<Mask>> {
     let mut seen = Vec::new();
     let mut pos = first;
     while pos != 0 {
@@ -272,7 +187,7 @@ fn unsupported(what: String) -> Error {
 }
 
 fn mask_of(
-    src: &mut dyn ReadAt,
+    src: &mut Source<'_>,
     o: Order,
     d: &Directory,
     width: usize,
@@ -361,7 +276,7 @@ fn mask_of(
 impl Mask {
     /// Validity of rows `y0..y0 + rows`, full width, row-major: `true` where the mask lets
     /// the sample through.
-    pub(super) fn rows(&self, src: &mut dyn ReadAt, y0: usize, rows: usize) -> Result<Vec<bool>> {
+    pub(super) fn rows(&self, src: &mut Source<'_>, y0: usize, rows: usize) -> Result<Vec<bool>> {
         let end = y0 + rows;
         debug_assert!(end <= self.height);
         let mut out = vec![false; self.width * rows];
@@ -394,7 +309,7 @@ impl Mask {
 
     /// Chunk `k` decompressed: exactly `size` bytes. A chunk of 0 bytes (GDAL's sparse
     /// files) is all zeros: masked, as GDAL reads it.
-    fn chunk(&self, src: &mut dyn ReadAt, k: usize, size: usize) -> Result<Vec<u8>> {
+    fn chunk(&self, src: &mut Source<'_>, k: usize, size: usize) -> Result<Vec<u8>> {
         let n = self.counts[k];
         if n == 0 {
             return Ok(vec![0; size]);
@@ -490,6 +405,12 @@ mod tests {
         out
     }
 
+    /// `m.rows` over the file `file` in memory.
+    fn rows(m: &Mask, file: &[u8], y0: usize, n: usize) -> Result<Vec<bool>> {
+        let mut c = std::io::Cursor::new(file);
+        m.rows(&mut Source::new(&mut c, file.len() as u64), y0, n)
+    }
+
     fn one_chunk(w: usize, h: usize, compression: u16, bytes: usize) -> Mask {
         Mask {
             width: w,
@@ -522,9 +443,9 @@ mod tests {
         packbits.extend_from_slice(&raw);
         for (compression, file) in [(1, raw.clone()), (5, lzw), (8, deflate), (32773, packbits)] {
             let m = one_chunk(w, h, compression, file.len());
-            let got = m.rows(&mut InMemory(&file), 0, h).unwrap();
+            let got = rows(&m, &file, 0, h).unwrap();
             assert_eq!(got, valid, "compression {compression}");
-            let part = m.rows(&mut InMemory(&file), 2, 2).unwrap();
+            let part = rows(&m, &file, 2, 2).unwrap();
             assert_eq!(
                 part,
                 valid[2 * w..4 * w],
@@ -533,15 +454,10 @@ mod tests {
         }
         // A chunk that decodes short is corrupt; a missing (sparse) chunk is all masked.
         let m = one_chunk(w, h, 1, 3);
-        let e = m.rows(&mut InMemory(&raw), 0, h).unwrap_err();
+        let e = rows(&m, &raw, 0, h).unwrap_err();
         assert!(matches!(e, Error::Corrupt { .. }), "{e}");
         let m = one_chunk(w, h, 1, 0);
-        assert!(
-            m.rows(&mut InMemory(&raw), 0, h)
-                .unwrap()
-                .iter()
-                .all(|v| !v)
-        );
+        assert!(rows(&m, &raw, 0, h).unwrap().iter().all(|v| !v));
     }
 
     #[test]

@@ -1,47 +1,52 @@
 //! GeoTIFF reading and writing: single-band elevation rasters with their georeferencing and nodata.
 //!
-//! Reading goes through the `tiff` crate's decoder, after a small pre-pass over the first
-//! image file directory (IFD) of our own. The pre-pass checks that the tags the decoder will
-//! read point inside the file, that the raster is of a layout we support (one sample per
-//! pixel; uint8, int16, uint16, int32, float32 or float64; no compression, LZW, Deflate or
-//! PackBits; predictor 1, 2 or 3) and that its size is within [`ReadOptions::max_samples`],
-//! so garbage or hostile headers give an error instead of a large allocation.
+//! One reader ([`Reader`]) over any `Read + Seek` source decodes a file band by band or whole:
+//! [`read`] is that reader over bytes in memory, [`Reader::open`] over a file on disk. It goes
+//! through the `tiff` crate's decoder, after a small pre-pass over the first image file
+//! directory (IFD) of our own. The pre-pass checks that the tags the decoder will read point
+//! inside the file, that the raster is of a layout we support (one sample per pixel; uint8,
+//! int16, uint16, int32, float32 or float64; no compression, LZW, Deflate or PackBits;
+//! predictor 1, 2 or 3) and that its size is within [`ReadOptions::max_samples`], so garbage
+//! or hostile headers give an error instead of a large allocation.
 //!
 //! The GeoTIFF tags (ModelPixelScale, ModelTiepoint, ModelTransformation, the three GeoKey
 //! tags and GDAL_NODATA) become a [`Georef`] with the GeoKeys kept verbatim, so a
 //! GeoTIFF → raster → GeoTIFF round trip gives GDAL the same CRS. GDAL_METADATA (tag 42112,
 //! XML) is kept verbatim in `Raster::gdal_metadata` and written back.
 //!
-//! Writing produces a striped, Deflate-compressed GeoTIFF in the raster's sample type, with
-//! the horizontal predictor for integer samples. (The `tiff` 0.11 encoder has no floating-point
+//! Writing produces a striped, Deflate-compressed GeoTIFF of a raster held whole ([`write`]),
+//! or a tiled one band by band ([`StreamWriter`]), in the raster's sample type, with the
+//! horizontal predictor for integer samples. (The `tiff` 0.11 encoder has no floating-point
 //! predictor, so float samples are written with Deflate alone.)
 //!
 //! A per-dataset mask band inside the file (GDAL's `GDAL_TIFF_INTERNAL_MASK`, as COGs carry
-//! it) makes its masked samples invalid in both readers (`mask`).
+//! it) makes its masked samples invalid (`mask`).
 //!
-//! One file a concern: `precheck` (the IFD pre-pass), `read` (decoding), `georef` (the
+//! One file a concern: `ifd` (the TIFF header and directories walked over a source),
+//! `precheck` (the pre-pass on the first directory), `reader` (decoding), `georef` (the
 //! georeferencing tags both ways), `nodata` (GDAL_NODATA text both ways), `mask` (the internal
-//! mask band) and `write` (encoding); the tag numbers they share are below.
+//! mask band), `write` (a whole raster, striped) and `writer` (band by band, tiled); the tag
+//! numbers they share are below.
 //!
 //! [`ReadOptions::max_samples`]: crate::formats::ReadOptions::max_samples
 //! [`Georef`]: crate::model::Georef
 
 mod georef;
+mod ifd;
 mod mask;
 mod nodata;
 mod precheck;
-mod read;
-mod stream;
+mod reader;
 mod tags;
 mod write;
+mod writer;
 
 #[cfg(test)]
 mod fixtures;
 
-pub use read::read;
-#[allow(unused_imports)] // until the codec calls them
-pub use stream::{StreamReader, StreamWriter};
+pub use reader::{Reader, read};
 pub use write::write;
+pub use writer::StreamWriter;
 
 // Tag numbers shared by the pre-pass, the readers, the writers and the tests.
 // TIFF baseline / extension tags the pre-pass looks at.

@@ -1,9 +1,11 @@
 //! GDAL_NODATA: the nodata tag's text parsed on reading and formatted on writing.
 
 use super::TAG_GDAL_NODATA;
-use super::tags::{Dec, tag_string};
+use super::tags::tag_string;
 use crate::error::{Error, Result};
 use crate::model::SampleType;
+use std::io::{Read, Seek};
+use tiff::decoder::Decoder;
 
 /// Parse a GDAL_NODATA string ("-9999", "nan", "-3.40282346638529e+38", ...).
 fn parse_nodata(s: &str) -> Option<f64> {
@@ -18,7 +20,10 @@ fn parse_nodata(s: &str) -> Option<f64> {
 
 /// The declared nodata value, as the samples hold it (f32-rounded for float32 rasters).
 /// A NaN nodata is no nodata: NaN samples are invalid anyway.
-pub(super) fn read_nodata(dec: &mut Dec<'_>, st: SampleType) -> Result<Option<f64>> {
+pub(super) fn read_nodata<R: Read + Seek>(
+    dec: &mut Decoder<R>,
+    st: SampleType,
+) -> Result<Option<f64>> {
     let Some(s) = tag_string(dec, TAG_GDAL_NODATA)? else {
         return Ok(None);
     };

@@ -1,5 +1,7 @@
-//! The IFD pre-pass: the first image directory checked (bounds, layout, size) before decoding.
+//! The IFD pre-pass: the first image directory checked (bounds, layout, size) before decoding,
+//! over the file in memory or on disk alike (`ifd::Source`).
 
+use super::ifd::{self, Order, Source, type_size};
 use super::{
     TAG_BITS_PER_SAMPLE, TAG_COMPRESSION, TAG_EXTRA_SAMPLES, TAG_GDAL_METADATA, TAG_GDAL_NODATA,
     TAG_GEO_ASCII_PARAMS, TAG_GEO_DOUBLE_PARAMS, TAG_GEO_KEY_DIRECTORY, TAG_IMAGE_LENGTH,
@@ -15,7 +17,7 @@ use crate::model::{SampleType, check_size};
 
 /// Tags whose data the pre-pass requires to lie inside the file (the ones the `tiff` decoder
 /// or this module reads). Other tags are never read, so a broken one is harmless.
-pub(super) const CHECKED_TAGS: &[u16] = &[
+const CHECKED_TAGS: &[u16] = &[
     TAG_IMAGE_WIDTH,
     TAG_IMAGE_LENGTH,
     TAG_BITS_PER_SAMPLE,
@@ -51,190 +53,97 @@ pub(super) struct Layout {
     pub(super) height: usize,
     pub(super) samples: usize,
     pub(super) sample_type: SampleType,
+    /// The file's byte order and kind.
+    pub(super) order: Order,
+    /// Where the first image directory is.
+    pub(super) first_ifd: u64,
 }
 
-/// Byte order and offset size of a TIFF file, with bounds-checked readers.
-struct RawTiff<'a> {
-    b: &'a [u8],
-    le: bool,
-    big: bool,
-}
-
-/// One IFD entry as stored.
+/// One IFD entry the pre-pass looks at.
 struct RawEntry {
     tag: u16,
     typ: u16,
-    count: u64,
     /// Where the value bytes start (inline in the entry or at the offset it holds).
     data_pos: u64,
+    /// Their length in bytes.
+    len: u64,
 }
 
-impl RawTiff<'_> {
-    fn bytes(&self, pos: u64, len: usize) -> Option<&[u8]> {
-        let pos = usize::try_from(pos).ok()?;
-        self.b.get(pos..pos.checked_add(len)?)
-    }
-    /// The `N` bytes at `pos` as a number in the file's byte order.
-    fn number_at<const N: usize, T>(
-        &self,
-        pos: u64,
-        from_le: fn([u8; N]) -> T,
-        from_be: fn([u8; N]) -> T,
-    ) -> Option<T> {
-        let s: [u8; N] = self.bytes(pos, N)?.try_into().ok()?;
-        Some(if self.le { from_le(s) } else { from_be(s) })
-    }
-    fn u16_at(&self, pos: u64) -> Option<u16> {
-        self.number_at(pos, u16::from_le_bytes, u16::from_be_bytes)
-    }
-    fn u32_at(&self, pos: u64) -> Option<u32> {
-        self.number_at(pos, u32::from_le_bytes, u32::from_be_bytes)
-    }
-    fn u64_at(&self, pos: u64) -> Option<u64> {
-        self.number_at(pos, u64::from_le_bytes, u64::from_be_bytes)
-    }
+/// At most this many bytes of one tag's values are read (a bound on what one tag can make
+/// the pre-pass hold, whatever the file's size).
+const MAX_TAG_BYTES: u64 = 256 << 20;
 
-    /// The unsigned integer values of an entry of type BYTE, SHORT, LONG or LONG8.
-    fn uints(&self, e: &RawEntry) -> Result<Vec<u64>> {
-        let size = type_size(e.typ).unwrap_or(0);
-        let bad = || {
-            Error::corrupt(format!(
+/// The unsigned integer values of an entry of type BYTE, SHORT, LONG or LONG8.
+fn uints(src: &mut Source<'_>, o: Order, e: &RawEntry) -> Result<Vec<u64>> {
+    let size = match e.typ {
+        1 | 3 | 4 | 16 => type_size(e.typ).unwrap_or(1),
+        _ => {
+            return Err(Error::corrupt(format!(
                 "GeoTIFF tag {} has type {} where an unsigned integer is expected",
                 e.tag, e.typ
-            ))
-        };
-        // The data range was checked to lie inside the file, so `count` is bounded by its size.
-        let mut out = Vec::with_capacity(e.count as usize);
-        for k in 0..e.count {
-            let pos = e.data_pos + k * size;
-            let v = match e.typ {
-                1 => self.bytes(pos, 1).map(|b| u64::from(b[0])),
-                3 => self.u16_at(pos).map(u64::from),
-                4 => self.u32_at(pos).map(u64::from),
-                16 => self.u64_at(pos),
-                _ => return Err(bad()),
-            };
-            out.push(v.ok_or_else(|| Error::corrupt("GeoTIFF is truncated"))?);
+            )));
         }
-        Ok(out)
+    };
+    if e.len > MAX_TAG_BYTES {
+        return Err(Error::limit(format!(
+            "GeoTIFF tag {} holds {} bytes, over the limit of {MAX_TAG_BYTES}",
+            e.tag, e.len
+        )));
     }
-}
-
-/// Size in bytes of one value of a TIFF field type.
-pub(super) fn type_size(typ: u16) -> Option<u64> {
-    Some(match typ {
-        1 | 2 | 6 | 7 => 1,
-        3 | 8 => 2,
-        4 | 9 | 11 | 13 => 4,
-        5 | 10 | 12 | 16 | 17 | 18 => 8,
-        _ => return None,
-    })
+    // The data range was checked to lie inside the file, so its length is bounded by the file.
+    let b = src.read_at(e.data_pos, e.len as usize)?;
+    Ok(b.chunks_exact(size as usize).map(|c| o.uint(c)).collect())
 }
 
 /// Walk the first IFD: check that the tags we rely on are well-formed and inside the file,
 /// that the layout is supported, and that the size is within the limit.
-pub(super) fn precheck(bytes: &[u8], opts: &ReadOptions) -> Result<Layout> {
+pub(super) fn precheck(src: &mut Source<'_>, opts: &ReadOptions) -> Result<Layout> {
     let truncated = || Error::corrupt("GeoTIFF is truncated");
-    let le = match bytes.get(..2) {
-        Some(b"II") => true,
-        Some(b"MM") => false,
-        Some(_) => return Err(Error::corrupt("not a TIFF file (bad byte-order mark)")),
-        None => return Err(truncated()),
-    };
-    let mut t = RawTiff {
-        b: bytes,
-        le,
-        big: false,
-    };
-    let ifd_pos = match t.u16_at(2).ok_or_else(truncated)? {
-        42 => u64::from(t.u32_at(4).ok_or_else(truncated)?),
-        43 => {
-            t.big = true;
-            if t.u16_at(4) != Some(8) || t.u16_at(6) != Some(0) {
-                return Err(Error::corrupt("BigTIFF header is invalid"));
-            }
-            t.u64_at(8).ok_or_else(truncated)?
-        }
-        v => return Err(Error::corrupt(format!("not a TIFF file (version {v})"))),
-    };
-    if ifd_pos < 8 || ifd_pos >= bytes.len() as u64 {
-        return Err(Error::corrupt(format!(
-            "GeoTIFF image directory offset {ifd_pos} is outside the file ({} bytes)",
-            bytes.len()
-        )));
-    }
-    let (count, entry_size, first, inline) = if t.big {
-        (
-            t.u64_at(ifd_pos).ok_or_else(truncated)?,
-            20u64,
-            ifd_pos + 8,
-            8u64,
-        )
-    } else {
-        let n = u64::from(t.u16_at(ifd_pos).ok_or_else(truncated)?);
-        (n, 12u64, ifd_pos + 2, 4u64)
-    };
-    if count == 0 {
+    let file_len = src.len();
+    let (o, ifd_pos) = ifd::header(src)?;
+    let dir = ifd::directory(src, o, ifd_pos)?.ok_or_else(truncated)?;
+    if dir.count == 0 {
         return Err(Error::corrupt("GeoTIFF image directory is empty"));
     }
-    let dir_end = count
-        .checked_mul(entry_size)
-        .and_then(|n| n.checked_add(first))
-        .ok_or_else(truncated)?;
-    if dir_end > bytes.len() as u64 {
+    if dir.end(o).is_none_or(|end| end > file_len) {
         return Err(truncated());
     }
 
     let mut entries: Vec<RawEntry> = Vec::new();
-    for k in 0..count {
-        let p = first + k * entry_size;
-        let tag = t.u16_at(p).ok_or_else(truncated)?;
+    dir.entries(src, o, |e| {
+        let tag = e.tag;
         if !CHECKED_TAGS.contains(&tag) {
-            continue;
+            return Ok(());
         }
-        let typ = t.u16_at(p + 2).ok_or_else(truncated)?;
-        let (cnt, field) = if t.big {
-            (t.u64_at(p + 4).ok_or_else(truncated)?, p + 12)
-        } else {
-            (u64::from(t.u32_at(p + 4).ok_or_else(truncated)?), p + 8)
-        };
+        let (typ, cnt) = (e.typ, e.count);
         let size = type_size(typ).ok_or_else(|| {
             Error::corrupt(format!("GeoTIFF tag {tag} has an unknown field type {typ}"))
         })?;
         let len = size.checked_mul(cnt).ok_or_else(truncated)?;
-        let data_pos = if len <= inline {
-            field
-        } else if t.big {
-            t.u64_at(field).ok_or_else(truncated)?
-        } else {
-            u64::from(t.u32_at(field).ok_or_else(truncated)?)
-        };
-        if data_pos
-            .checked_add(len)
-            .is_none_or(|end| end > bytes.len() as u64)
-        {
+        let data_pos = e.data_pos(o, len);
+        if data_pos.checked_add(len).is_none_or(|end| end > file_len) {
             return Err(Error::corrupt(format!(
                 "GeoTIFF is truncated or corrupt: tag {tag} ({cnt} values at offset {data_pos}) \
-                 ends past the end of the file ({} bytes)",
-                bytes.len()
+                 ends past the end of the file ({file_len} bytes)"
             )));
         }
         if entries.iter().any(|e| e.tag == tag) {
-            continue; // the decoder keeps the first one too
+            return Ok(()); // the decoder keeps the first one too
         }
         entries.push(RawEntry {
             tag,
             typ,
-            count: cnt,
             data_pos,
+            len,
         });
-    }
+        Ok(())
+    })?;
     let find = |tag: u16| entries.iter().find(|e| e.tag == tag);
-    let uints = |tag: u16| -> Result<Option<Vec<u64>>> {
+    let mut uints = |tag: u16| -> Result<Option<Vec<u64>>> {
         match find(tag) {
             None => Ok(None),
             Some(e) => {
-                let v = t.uints(e)?;
+                let v = uints(src, o, e)?;
                 if v.is_empty() {
                     return Err(Error::corrupt(format!("GeoTIFF tag {tag} has no value")));
                 }
@@ -242,7 +151,7 @@ pub(super) fn precheck(bytes: &[u8], opts: &ReadOptions) -> Result<Layout> {
             }
         }
     };
-    let scalar = |tag: u16| -> Result<Option<u64>> { Ok(uints(tag)?.map(|v| v[0])) };
+    let mut scalar = |tag: u16| -> Result<Option<u64>> { Ok(uints(tag)?.map(|v| v[0])) };
 
     let width =
         scalar(TAG_IMAGE_WIDTH)?.ok_or_else(|| Error::corrupt("GeoTIFF has no ImageWidth tag"))?;
@@ -396,13 +305,12 @@ pub(super) fn precheck(bytes: &[u8], opts: &ReadOptions) -> Result<Layout> {
             counts.len()
         )));
     }
-    for (i, (&o, &c)) in offsets.iter().zip(&counts).enumerate() {
-        if o.checked_add(c).is_none_or(|end| end > bytes.len() as u64) {
+    for (i, (&off, &c)) in offsets.iter().zip(&counts).enumerate() {
+        if off.checked_add(c).is_none_or(|end| end > file_len) {
             return Err(Error::corrupt(format!(
-                "GeoTIFF is truncated: {} {i} ({c} bytes at offset {o}) ends past the end of \
-                 the file ({} bytes)",
+                "GeoTIFF is truncated: {} {i} ({c} bytes at offset {off}) ends past the end of \
+                 the file ({file_len} bytes)",
                 if tiled { "tile" } else { "strip" },
-                bytes.len()
             )));
         }
     }
@@ -412,6 +320,8 @@ pub(super) fn precheck(bytes: &[u8], opts: &ReadOptions) -> Result<Layout> {
         height: height as usize,
         samples,
         sample_type,
+        order: o,
+        first_ifd: ifd_pos,
     })
 }
 
@@ -586,15 +496,7 @@ mod tests {
         let mut rng = Rng(0xdead_beef);
         for input in &inputs {
             for _ in 0..iters {
-                let mut m = input.clone();
-                for _ in 0..1 + rng.below(4) {
-                    let i = rng.below(m.len() as u64) as usize;
-                    m[i] = match rng.below(4) {
-                        0 => 0,
-                        1 => 0xff,
-                        _ => rng.next() as u8,
-                    };
-                }
+                let m = mutated(input, &mut rng);
                 // Any result is fine; it must not panic or allocate wildly.
                 let _ = read(&m, &opts());
             }

@@ -2,7 +2,7 @@
 //! tag as text, writing one as text.
 
 use crate::error::{Error, Result};
-use std::io::{Cursor, Seek, Write};
+use std::io::{Read, Seek, Write};
 use tiff::decoder::{Decoder, ifd::Value};
 use tiff::encoder::{DirectoryEncoder, TiffKind};
 use tiff::tags::{Tag, Type};
@@ -22,9 +22,8 @@ pub(super) fn tiff_err(e: TiffError) -> Error {
     }
 }
 
-pub(super) type Dec<'a> = Decoder<Cursor<&'a [u8]>>;
-
-pub(super) fn tag_string(dec: &mut Dec<'_>, tag: u16) -> Result<Option<String>> {
+/// A tag's text; `None` when the tag is absent, an error when it is not ASCII.
+pub(super) fn tag_string<R: Read + Seek>(dec: &mut Decoder<R>, tag: u16) -> Result<Option<String>> {
     match dec
         .find_tag(Tag::from_u16_exhaustive(tag))
         .map_err(tiff_err)?
