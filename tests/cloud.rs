@@ -38,14 +38,8 @@ fn big_file(effort: Option<u8>) -> Vec<u8> {
     for y in y0..y0 + n {
         data.extend_from_slice(&src.data[y * src.width + x0..y * src.width + x0 + n]);
     }
-    let crop = vtz::Raster {
-        width: n,
-        height: n,
-        data,
-        mask: None,
-        georef: None,
-        ..src
-    };
+    let mut crop = src;
+    (crop.width, crop.height, crop.data, crop.mask, crop.georef) = (n, n, data, None, None);
     vtz::encode(&crop, &opts(1.0, 128, effort)).unwrap()
 }
 

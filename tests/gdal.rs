@@ -416,14 +416,12 @@ fn png_world_file_and_aux_xml_content() {
     // Pixel is point: the geotransform's corner is half a pixel out, the world file's
     // reference point is the post itself.
     let k = read(&corpus(KAUAI));
-    let o = vtz::formats::WriteOptions {
-        png_mapping: Some(vtz::formats::PngMapping {
+    let o =
+        vtz::formats::WriteOptions::default().with_png_mapping(Some(vtz::formats::PngMapping {
             scale: 1.0,
             offset: -32768.0,
             nodata_code: Some(0),
-        }),
-        ..Default::default()
-    };
+        }));
     let kpng = dir.path().join("k.png");
     vtz::write_path(&k, &kpng, &o).unwrap();
     let pgw = std::fs::read_to_string(dir.path().join("k.pgw")).unwrap();
@@ -746,10 +744,7 @@ fn mapped_u16_codes_decode_to_int16_values() {
         offset: -32768.0,
         nodata_code: None,
     };
-    let ro = vtz::formats::ReadOptions {
-        png_mapping: Some(pm.clone()),
-        ..Default::default()
-    };
+    let ro = vtz::formats::ReadOptions::default().with_png_mapping(Some(pm.clone()));
     let full = vtz::read_path(&corpus("srtm1_N45E013_istria_crop2400.png"), &ro).unwrap();
     // 2400 x 600 rows of the coast (values -29 ... 1023 m), as the same kind of PNG.
     let (w, h) = (full.width, 600);
@@ -767,10 +762,7 @@ fn mapped_u16_codes_decode_to_int16_values() {
         "the crop has heights below 0"
     );
     let png = dir.path().join("istria.png");
-    let wo = vtz::formats::WriteOptions {
-        png_mapping: Some(pm),
-        ..Default::default()
-    };
+    let wo = vtz::formats::WriteOptions::default().with_png_mapping(Some(pm));
     vtz::write_path(&r, &png, &wo).unwrap();
     let s = |p: &Path| p.to_string_lossy().into_owned();
     let conv = dir.path().join("convert.tif");

@@ -69,22 +69,19 @@ fn originals_convert_bit_exactly() {
         let again = tmp.path().join(format!("again_{name}.{ext}"));
         convert(&src, &again, &flags);
         let trgb = orig.contains("terrainrgb");
-        let ro = vtz::formats::ReadOptions {
-            png_mapping: orig
-                .starts_with("srtm1_N45E013")
-                .then(|| vtz::formats::PngMapping {
-                    scale: 1.0,
-                    offset: -32768.0,
-                    nodata_code: Some(0),
-                }),
-            format: trgb.then_some(vtz::formats::Format::TerrainRgb),
-            ..Default::default()
-        };
+        let ro = vtz::formats::ReadOptions::default()
+            .with_png_mapping(
+                orig.starts_with("srtm1_N45E013")
+                    .then(|| vtz::formats::PngMapping {
+                        scale: 1.0,
+                        offset: -32768.0,
+                        nodata_code: Some(0),
+                    }),
+            )
+            .with_format(trgb.then_some(vtz::formats::Format::TerrainRgb));
         let a = vtz::read_path(&src, &ro).unwrap();
-        let again_ro = vtz::formats::ReadOptions {
-            format: trgb.then_some(vtz::formats::Format::TerrainRgb),
-            ..Default::default()
-        };
+        let again_ro = vtz::formats::ReadOptions::default()
+            .with_format(trgb.then_some(vtz::formats::Format::TerrainRgb));
         let b = vtz::read_path(&again, &again_ro).unwrap();
         assert_same(&a, &b, orig);
         if ext == "hgt" {

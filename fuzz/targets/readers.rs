@@ -10,10 +10,7 @@ pub fn run(data: &[u8]) {
     let Some((&pick, file)) = data.split_first() else {
         return;
     };
-    let opts = ReadOptions {
-        max_samples: Some(1 << 16),
-        ..Default::default()
-    };
+    let opts = ReadOptions::default().with_max_samples(Some(1 << 16));
     let r = match pick % 8 {
         0 => formats::geotiff(file, &opts),
         1 => formats::png(file, None, None, &opts),

@@ -1112,10 +1112,7 @@ fn write<'py>(
                     path.display()
                 )));
             }
-            let w = vtz::formats::WriteOptions {
-                force,
-                ..Default::default()
-            };
+            let w = vtz::formats::WriteOptions::default().with_force(force);
             vtz::write_path(&raster, &path, &w)
         }
     });

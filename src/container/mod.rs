@@ -17,8 +17,20 @@ use std::io::{Read, Seek, SeekFrom};
 
 /// The 8 magic bytes every `.vtz` file starts with.
 pub const MAGIC: [u8; 8] = [0x89, b'V', b'T', b'Z', 0x0d, 0x0a, 0x1a, 0x0a];
-/// The container version this crate writes.
+/// The container version of an untiled raster (one container).
 pub const VERSION: u16 = 1;
+/// The container version of tiled files (`tiled`) with the index at the end (read forever, no
+/// longer written).
+pub const VERSION_TILED: u16 = 2;
+/// The container version of tiled files laid out for range reads: header, tile index and
+/// global sections first, progressive tile blocks (spec/FORMAT.md, "Version 4").
+pub const VERSION_CLOUD: u16 = 4;
+/// The container version of tiled files laid out for range reads with every tile's coarse
+/// chunks together before the rest (spec/FORMAT.md, "Version 5"): an overview at or coarser
+/// than the file's split is one range. What vtz writes for tiled rasters.
+pub const VERSION_HEADS: u16 = 5;
+/// The container version of a point set (`points`).
+pub const VERSION_POINTS: u16 = 3;
 /// Most sections a decoder accepts in one file.
 pub const MAX_SECTIONS: u32 = 4096;
 /// Bytes of one directory entry.
@@ -141,14 +153,8 @@ pub fn write(header: &Header, sections: &[Section]) -> Vec<u8> {
     let payload_len: usize = sections.iter().map(|s| s.payload.len()).sum();
     let mut out =
         Vec::with_capacity(32 + body.len() + sections.len() * DIR_ENTRY_LEN + payload_len);
-    out.extend_from_slice(&MAGIC);
-    out.put_u16(VERSION);
-    out.put_u16(0); // required flags: none defined in version 1
-    out.put_u32(body.len() as u32);
-    out.extend_from_slice(&body);
-    let crc = crc32fast::hash(&out);
-    out.put_u32(crc);
-    tiled::directory_bytes(&mut out, sections);
+    FileStart::write(&mut out, VERSION, &body);
+    directory_bytes(&mut out, sections);
     out
 }
 
@@ -189,6 +195,20 @@ pub struct FileStart {
 }
 
 impl FileStart {
+    /// Write a file's start: the magic, `version`, no required flags (none is defined), the
+    /// length of `body`, `body` and the checksum over all of them (what [`FileStart::read`]
+    /// reads back), at the start of `out`.
+    pub fn write(out: &mut Vec<u8>, version: u16, body: &[u8]) {
+        let start = out.len();
+        out.extend_from_slice(&MAGIC);
+        out.put_u16(version);
+        out.put_u16(0);
+        out.put_u32(body.len() as u32);
+        out.extend_from_slice(body);
+        let crc = crc32fast::hash(&out[start..]);
+        out.put_u32(crc);
+    }
+
     /// Read and check a file's start from `inner` (any position; left after the header's
     /// checksum). `accept` says whether this reader reads the version (checked before the
     /// flags and the header, which a version it does not read may lay out otherwise).
@@ -635,4 +655,20 @@ pub fn read(bytes: &[u8], limits: Limits, names: KindNames) -> Result<Container>
         header: r.header().clone(),
         sections,
     })
+}
+/// The bytes of a section directory (count, entries, checksum) followed by the payloads.
+pub(crate) fn directory_bytes(out: &mut Vec<u8>, sections: &[Section]) {
+    let dir_start = out.len();
+    out.put_u32(sections.len() as u32);
+    for s in sections {
+        out.put_u16(s.kind.code());
+        out.put_u16(s.flags);
+        out.put_u32(crc32fast::hash(&s.payload));
+        out.put_u64(s.payload.len() as u64);
+    }
+    let crc = crc32fast::hash(&out[dir_start..]);
+    out.put_u32(crc);
+    for s in sections {
+        out.extend_from_slice(&s.payload);
+    }
 }

@@ -3,12 +3,12 @@
 //! as version 1 (spec/FORMAT.md, "Version 3: point sets").
 
 use super::bytes::{ByteReader, PutLe};
-use super::{FileStart, Limits, MAGIC, Section, SectionEntry, SectionKind, read_directory};
+use super::{
+    FileStart, Limits, Section, SectionEntry, SectionKind, VERSION_POINTS, read_directory,
+};
 use crate::error::{Error, Result};
 use std::io::Cursor;
 
-/// The container version of a point set.
-pub const VERSION_POINTS: u16 = 3;
 /// Section type: the distinct positions and their multiplicities.
 pub const POSITIONS: SectionKind = SectionKind(10);
 /// Section type: the point-set sites (levels, values) and the values of shared positions.
@@ -194,14 +194,8 @@ pub fn write_points(header: &PointsHeader, sections: &[Section]) -> Result<Vec<u
     header.check()?;
     let body = header.to_bytes();
     let mut out = Vec::new();
-    out.extend_from_slice(&MAGIC);
-    out.put_u16(VERSION_POINTS);
-    out.put_u16(0);
-    out.put_u32(body.len() as u32);
-    out.extend_from_slice(&body);
-    let crc = crc32fast::hash(&out);
-    out.put_u32(crc);
-    super::tiled::directory_bytes(&mut out, sections);
+    FileStart::write(&mut out, VERSION_POINTS, &body);
+    super::directory_bytes(&mut out, sections);
     Ok(out)
 }
 

@@ -5,24 +5,14 @@
 
 use super::bytes::{ByteReader, PutLe};
 use super::{
-    ContainerReader, DIR_ENTRY_LEN, FileStart, Header, KindNames, Limits, MAGIC, Section,
-    SectionEntry, SectionKind, checksum_ok,
+    ContainerReader, DIR_ENTRY_LEN, FileStart, Header, KindNames, Limits, Section, SectionEntry,
+    SectionKind, VERSION_CLOUD, VERSION_HEADS, VERSION_TILED, checksum_ok, directory_bytes,
 };
 use crate::error::{Error, Result};
 use crate::model::Window;
 use crate::source::Source;
 use std::io::{Cursor, Read, Seek, SeekFrom, Write};
 
-/// The container version of tiled files with the index at the end (read forever, no
-/// longer written).
-pub const VERSION_TILED: u16 = 2;
-/// The container version of tiled files laid out for range reads: header, tile index and
-/// global sections first, progressive tile blocks (spec/FORMAT.md, "Version 4").
-pub const VERSION_CLOUD: u16 = 4;
-/// The container version of tiled files laid out for range reads with every tile's coarse
-/// chunks together before the rest (spec/FORMAT.md, "Version 5"): an overview at or coarser
-/// than the file's split is one range. What vtz writes for tiled rasters.
-pub const VERSION_HEADS: u16 = 5;
 /// Bytes of a version-4 index entry before its chunk table.
 pub const CLOUD_ENTRY_LEN: usize = 40;
 /// Most chunks a version-4 tile block has (the anchors and up to 12 levels).
@@ -304,23 +294,6 @@ impl TileEntry {
     }
 }
 
-/// The bytes of a section directory (count, entries, checksum) followed by the payloads.
-pub(crate) fn directory_bytes(out: &mut Vec<u8>, sections: &[Section]) {
-    let dir_start = out.len();
-    out.put_u32(sections.len() as u32);
-    for s in sections {
-        out.put_u16(s.kind.code());
-        out.put_u16(s.flags);
-        out.put_u32(crc32fast::hash(&s.payload));
-        out.put_u64(s.payload.len() as u64);
-    }
-    let crc = crc32fast::hash(&out[dir_start..]);
-    out.put_u32(crc);
-    for s in sections {
-        out.extend_from_slice(&s.payload);
-    }
-}
-
 /// A tile's block: its primary section index, a reserved zero, then its directory and
 /// sections.
 pub fn tile_block(primary: u16, sections: &[Section]) -> Vec<u8> {
@@ -345,13 +318,7 @@ fn cloud_head_bytes(header: &Header, grid: &TileGrid, index_len: u32, split: u32
     body.put_u32(index_len);
     body.put_u32(split);
     let mut out = Vec::with_capacity(20 + body.len());
-    out.extend_from_slice(&MAGIC);
-    out.put_u16(VERSION_HEADS);
-    out.put_u16(0);
-    out.put_u32(body.len() as u32);
-    out.extend_from_slice(&body);
-    let crc = crc32fast::hash(&out);
-    out.put_u32(crc);
+    FileStart::write(&mut out, VERSION_HEADS, &body);
     out
 }
 
@@ -876,7 +843,7 @@ impl RasterReader {
     pub fn new(mut inner: Source, limits: Limits, names: KindNames) -> Result<Self> {
         let start = FileStart::read(&mut inner, |version| match version {
             super::VERSION | VERSION_TILED | VERSION_CLOUD | VERSION_HEADS => Ok(()),
-            super::points::VERSION_POINTS => Err(Error::unsupported(
+            super::VERSION_POINTS => Err(Error::unsupported(
                 "this is a point set (container version 3), not a raster: read it with \
                  vtz::decode_points (the CLI decodes either)",
             )),

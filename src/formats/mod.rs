@@ -57,6 +57,7 @@ const KNOWN_FORMATS: &str = "tif, png, terrain-rgb, terrarium, exr, hgt, asc, f3
 
 /// Raster file formats vtz reads and writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum Format {
     /// GeoTIFF (`.tif`, `.tiff`).
     GeoTiff,
@@ -130,8 +131,9 @@ impl Format {
     }
 }
 
-/// Options for reading rasters.
+/// Options for reading rasters: `ReadOptions::default()`, then the `with_*` setters.
 #[derive(Clone, Debug, Default)]
+#[non_exhaustive]
 pub struct ReadOptions {
     /// Force a format instead of guessing from the extension.
     pub format: Option<Format>,
@@ -142,14 +144,30 @@ pub struct ReadOptions {
 }
 
 impl ReadOptions {
+    /// Read as `format` instead of guessing from the extension.
+    pub fn with_format(mut self, format: Option<Format>) -> Self {
+        self.format = format;
+        self
+    }
+    /// Map 16-bit PNG codes to values with `mapping` (over a sidecar's).
+    pub fn with_png_mapping(mut self, mapping: Option<png::PngMapping>) -> Self {
+        self.png_mapping = mapping;
+        self
+    }
+    /// Allocate at most `n` samples.
+    pub fn with_max_samples(mut self, n: Option<u64>) -> Self {
+        self.max_samples = n;
+        self
+    }
     /// The sample limit in force.
     pub fn max_samples(&self) -> u64 {
         self.max_samples.unwrap_or(DEFAULT_MAX_SAMPLES)
     }
 }
 
-/// Options for writing rasters.
+/// Options for writing rasters: `WriteOptions::default()`, then the `with_*` setters.
 #[derive(Clone, Debug, Default)]
+#[non_exhaustive]
 pub struct WriteOptions {
     /// Force a format instead of guessing from the extension.
     pub format: Option<Format>,
@@ -164,6 +182,34 @@ pub struct WriteOptions {
     /// `[NS]dd[EW]ddd`) write it without its georeferencing; without it such a write is
     /// refused.
     pub drop_georef: bool,
+}
+
+impl WriteOptions {
+    /// Write as `format` instead of following the extension.
+    pub fn with_format(mut self, format: Option<Format>) -> Self {
+        self.format = format;
+        self
+    }
+    /// Replace existing output files (or not).
+    pub fn with_force(mut self, force: bool) -> Self {
+        self.force = force;
+        self
+    }
+    /// Write 16-bit PNG codes with `mapping` (instead of the raster's own).
+    pub fn with_png_mapping(mut self, mapping: Option<png::PngMapping>) -> Self {
+        self.png_mapping = mapping;
+        self
+    }
+    /// Let a format round values it cannot hold (see [`WriteOptions::round`]).
+    pub fn with_round(mut self, round: bool) -> Self {
+        self.round = round;
+        self
+    }
+    /// Let a format drop georeferencing it cannot hold (see [`WriteOptions::drop_georef`]).
+    pub fn with_drop_georef(mut self, drop: bool) -> Self {
+        self.drop_georef = drop;
+        self
+    }
 }
 
 /// Open a raster file to be read band by band: raw `.f32` by seeking, GeoTIFF by chunks

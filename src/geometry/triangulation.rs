@@ -495,6 +495,21 @@ impl Triangulation {
     }
 }
 
+/// The circumcircle of the triangle `a, b, c` in floating point: its centre and its squared
+/// radius. Only for bounding a search (which samples or buckets a new triangle's circle may
+/// reach); the exact in-circle test is [`Triangulation`]'s.
+pub fn circumcircle(a: [i64; 2], b: [i64; 2], c: [i64; 2]) -> ([f64; 2], f64) {
+    let (ax, ay) = (a[0] as f64, a[1] as f64);
+    let (bx, by) = ((b[0] - a[0]) as f64, (b[1] - a[1]) as f64);
+    let (cx, cy) = ((c[0] - a[0]) as f64, (c[1] - a[1]) as f64);
+    let d = 2.0 * (bx * cy - by * cx);
+    let lb = bx * bx + by * by;
+    let lc = cx * cx + cy * cy;
+    let ux = (cy * lb - by * lc) / d;
+    let uy = (bx * lc - cx * lb) / d;
+    ([ax + ux, ay + uy], ux * ux + uy * uy)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

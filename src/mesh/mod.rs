@@ -31,6 +31,7 @@ pub struct Mesh {
 
 /// How a mesh is placed and what it carries.
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct MeshOptions {
     /// Heights are multiplied by this (vertical exaggeration).
     pub z_scale: f64,

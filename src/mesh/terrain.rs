@@ -659,16 +659,25 @@ pub fn build_tile(
             let a = (su.round().clamp(1.0, (Q - 1) as f64)) as u16;
             let b = (sv.round().clamp(1.0, (Q - 1) as f64)) as u16;
             let value = hs.code(grid.data[r * grid.width + c]);
-            let v = V {
-                u: a,
-                v: b,
-                h: value,
-            };
-            if add(&mut verts, v) {
+            // A vertex at (a, b) with the sample's value, where that position is free.
+            let mut place = |a: u16, b: u16| -> Result<bool> {
+                if !add(
+                    &mut verts,
+                    V {
+                        u: a,
+                        v: b,
+                        h: value,
+                    },
+                ) {
+                    return Ok(false);
+                }
                 tri.insert_near([a as i64, b as i64], None)?;
                 id_of.push((verts.len() - 1) as u32);
                 inserted += 1;
                 stats.added += 1;
+                Ok(true)
+            };
+            if place(a, b)? {
                 continue;
             }
             // Its position is taken: the mesh there is off by the rounding of its position
@@ -678,18 +687,7 @@ pub fn build_tile(
             // coarser than the raster's posts).
             let mut pinned = false;
             for (a, b) in cell_corners(su, sv) {
-                let v = V {
-                    u: a,
-                    v: b,
-                    h: value,
-                };
-                if add(&mut verts, v) {
-                    tri.insert_near([a as i64, b as i64], None)?;
-                    id_of.push((verts.len() - 1) as u32);
-                    inserted += 1;
-                    stats.added += 1;
-                    pinned = true;
-                }
+                pinned |= place(a, b)?;
             }
             if !pinned {
                 over += 1;

@@ -263,18 +263,17 @@ pub(crate) fn find(r: &Raster) -> Option<Vec<f64>> {
             flat[start as usize..start as usize + len as usize].fill(false);
         }
     }
-    let mut any = false;
-    let out: Vec<f64> = (0..n)
-        .map(|i| {
-            if flat[i] {
-                any = true;
-                r.data[i]
-            } else {
-                f64::NAN
-            }
-        })
-        .collect();
-    any.then_some(out)
+    flat_values(r, &flat)
+}
+
+/// The samples of the flat regions (NaN elsewhere), or `None` when there is none.
+fn flat_values(r: &Raster, flat: &[bool]) -> Option<Vec<f64>> {
+    flat.contains(&true).then(|| {
+        flat.iter()
+            .zip(&r.data)
+            .map(|(&f, &v)| if f { v } else { f64::NAN })
+            .collect()
+    })
 }
 
 /// Which of `bw`-wide row-major blocks are kept: a block wholly in one component
@@ -420,18 +419,7 @@ mod tests {
         for i in 0..n {
             flat[i] &= region_size[lab[i] as usize] >= MIN_PIECE;
         }
-        let mut any = false;
-        let out: Vec<f64> = (0..n)
-            .map(|i| {
-                if flat[i] {
-                    any = true;
-                    r.data[i]
-                } else {
-                    f64::NAN
-                }
-            })
-            .collect();
-        any.then_some(out)
+        flat_values(r, &flat)
     }
 
     fn same(a: &Option<Vec<f64>>, b: &Option<Vec<f64>>) -> bool {

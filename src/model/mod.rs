@@ -361,6 +361,7 @@ impl OutputType {
 /// `mask` is `Some`, it has the same length and `false` marks nodata; every invalid sample
 /// holds `nodata` (or NaN when no nodata value is declared); every valid sample is finite.
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct Raster {
     /// Samples per row.
     pub width: usize,

@@ -20,9 +20,9 @@ mod verify;
 pub use bands::bands_to_points;
 pub use verify::verify_points;
 
+use crate::container::VERSION_POINTS;
 use crate::container::points::{
-    ColumnHeader, MAX_EXTENT, POINT_SITES, POSITIONS, PointsFile, PointsHeader, VERSION_POINTS,
-    write_points,
+    ColumnHeader, MAX_EXTENT, POINT_SITES, POSITIONS, PointsFile, PointsHeader, write_points,
 };
 use crate::container::{Limits, MAGIC, SF_REQUIRED, Section};
 use crate::error::{Error, Result};
@@ -91,6 +91,18 @@ pub struct ColumnReport {
     pub max_error: f64,
     /// The RMSE measured at the input points.
     pub rmse: f64,
+}
+
+impl From<&ColumnHeader> for ColumnReport {
+    /// What a column's stored header says of it.
+    fn from(c: &ColumnHeader) -> ColumnReport {
+        ColumnReport {
+            name: c.name.clone(),
+            bound: c.bound,
+            max_error: c.max_error,
+            rmse: c.rmse,
+        }
+    }
 }
 
 /// What encoding a point set did.
@@ -417,15 +429,7 @@ pub fn encode_points(
                     ..cols0[c].clone()
                 })
                 .collect();
-            let report_cols = cols
-                .iter()
-                .map(|c| ColumnReport {
-                    name: c.name.clone(),
-                    bound: c.bound,
-                    max_error: c.max_error,
-                    rmse: c.rmse,
-                })
-                .collect();
+            let report_cols = cols.iter().map(ColumnReport::from).collect();
             let sections = [
                 Section {
                     kind: POSITIONS,
@@ -721,16 +725,7 @@ pub fn points_info(bytes: &[u8], limits: Limits) -> Result<PointsInfo> {
         levels: op.sites.levels.clone(),
         resolution: h.resolution,
         bounds: [x0, y0, x1, y1],
-        columns: h
-            .columns
-            .iter()
-            .map(|c| ColumnReport {
-                name: c.name.clone(),
-                bound: c.bound,
-                max_error: c.max_error,
-                rmse: c.rmse,
-            })
-            .collect(),
+        columns: h.columns.iter().map(ColumnReport::from).collect(),
         epsg: h.epsg,
         has_wkt: h.wkt.is_some(),
         sections,

@@ -13,7 +13,7 @@
 
 use crate::error::{Error, Result};
 use crate::geometry::sibson::{Scratch, Surface};
-use crate::geometry::triangulation::{MAX_COORD, incircle};
+use crate::geometry::triangulation::{MAX_COORD, circumcircle, incircle};
 use crate::methods::sites::convex_hull;
 use crate::quant::{code_of, height_of};
 use std::cmp::Reverse;
@@ -201,16 +201,8 @@ impl State<'_> {
             .collect();
         for [a, b_, c] in created {
             // The circumcircle in floating point, only to bound the buckets to visit.
-            let (ax, ay) = (a[0] as f64, a[1] as f64);
-            let (bx, by) = ((b_[0] - a[0]) as f64, (b_[1] - a[1]) as f64);
-            let (cx, cy) = ((c[0] - a[0]) as f64, (c[1] - a[1]) as f64);
-            let d = 2.0 * (bx * cy - by * cx);
-            let lb = bx * bx + by * by;
-            let lc = cx * cx + cy * cy;
-            let ux = (cy * lb - by * lc) / d;
-            let uy = (bx * lc - cx * lb) / d;
-            let r = (ux * ux + uy * uy).sqrt() + 2.0;
-            let (ox, oy) = (ax + ux, ay + uy);
+            let ([ox, oy], r2) = circumcircle(a, b_, c);
+            let r = r2.sqrt() + 2.0;
             let s = &self.b;
             let bx0 = (((ox - r).floor() as i64 - s.x0).max(0) / s.side) as usize;
             let by0 = (((oy - r).floor() as i64 - s.y0).max(0) / s.side) as usize;

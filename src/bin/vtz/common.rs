@@ -291,11 +291,9 @@ pub fn parse_format(s: Option<&str>) -> Result<Option<Format>> {
 
 /// Read any raster (a `.vtz` is decoded).
 pub fn read_raster(path: &Path, format: Option<Format>, opts: &RasterOpts) -> Result<Raster> {
-    let ro = ReadOptions {
-        format,
-        png_mapping: opts.mapping(),
-        ..Default::default()
-    };
+    let ro = ReadOptions::default()
+        .with_format(format)
+        .with_png_mapping(opts.mapping());
     vtz::read_path(path, &ro)
 }
 
@@ -313,11 +311,9 @@ pub fn open_source(
     if f == Format::Vtz {
         return Ok(Box::new(read_raster(path, format, opts)?));
     }
-    let ro = ReadOptions {
-        format,
-        png_mapping: opts.mapping(),
-        ..Default::default()
-    };
+    let ro = ReadOptions::default()
+        .with_format(format)
+        .with_png_mapping(opts.mapping());
     vtz::formats::open_source(path, &ro)
 }
 
@@ -327,13 +323,12 @@ pub fn write_options(
     opts: &RasterOpts,
     out: &OutputOpts,
 ) -> WriteOptions {
-    WriteOptions {
-        format,
-        force,
-        png_mapping: opts.mapping(),
-        round: out.round,
-        drop_georef: out.drop_georef,
-    }
+    WriteOptions::default()
+        .with_format(format)
+        .with_force(force)
+        .with_png_mapping(opts.mapping())
+        .with_round(out.round)
+        .with_drop_georef(out.drop_georef)
 }
 
 /// Whether a file starts like a `.vtz` point set (container version 3).

@@ -8,7 +8,7 @@
 
 use crate::error::{Error, Result};
 use crate::geometry::sibson::{Scratch, Surface};
-use crate::geometry::triangulation::incircle;
+use crate::geometry::triangulation::{circumcircle, incircle};
 use crate::quant::{code_of, height_of};
 use std::collections::BinaryHeap;
 use std::str::FromStr;
@@ -205,17 +205,8 @@ impl State<'_> {
             }
             let [a, b_, c] = tri.v.map(|v| self.surf.triangulation().point(v));
             // The circumcircle, in floating point (only to bound the samples to test).
-            let (ax, ay) = (a[0] as f64, a[1] as f64);
-            let (bx, by) = ((b_[0] - a[0]) as f64, (b_[1] - a[1]) as f64);
-            let (cx, cy) = ((c[0] - a[0]) as f64, (c[1] - a[1]) as f64);
-            let d = 2.0 * (bx * cy - by * cx);
-            let lb = bx * bx + by * by;
-            let lc = cx * cx + cy * cy;
-            let ux = (cy * lb - by * lc) / d;
-            let uy = (bx * lc - cx * lb) / d;
-            let r2 = ux * ux + uy * uy;
+            let ([ox, oy], r2) = circumcircle(a, b_, c);
             let r = r2.sqrt();
-            let (ox, oy) = (ax + ux, ay + uy);
             // The circle's chord on row y, padded by one sample for rounding (the exact test
             // below decides which samples are in the closed disk).
             let chord = |y: i64| -> (i64, i64) {
