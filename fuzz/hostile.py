@@ -2,7 +2,7 @@
 """Hostile variants of the golden files: header and directory fields edited and the
 checksums recomputed (FORMAT.md: CRC-32 of [0, 16+H) and of the directory), so only the
 decoder's own checks stand between such a file and an allocation or a loop sized by the
-edited header. tests/hostile.rs makes the same edits in Rust and holds every one to a time
+edited header. tests/suite/hostile.rs makes the same edits in Rust and holds every one to a time
 and memory budget; make_seeds.py puts them in the fuzz seeds.
 
     python3 fuzz/hostile.py OUT_DIR        # writes OUT_DIR/<golden>.<edit>.vtz

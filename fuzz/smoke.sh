@@ -2,7 +2,7 @@
 # The coverage-guided search as a smoke run: each fuzz target for SECONDS (default 8) from the
 # seeds of make_seeds.py, built without AddressSanitizer and debug info (quicker to build; the
 # long runs of fuzz/README.md keep ASan). Random by nature, so it runs before a stop, not in
-# CI (CI replays every seed deterministically: tests/fuzz_seeds.rs). Fails on any artifact.
+# CI (CI replays every seed deterministically: tests/suite/fuzz_seeds.rs). Fails on any artifact.
 #   fuzz/smoke.sh [SECONDS] [path/to/vtz]
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # The random search behind the property tests. A normal run (CI, the README's test command)
 # draws every property test's cases from one fixed seed and never writes the committed
-# *.proptest-regressions files (tests/common/shared.rs, `proptest_config`), so it gives the
+# regression files (tests/common/shared.rs, `proptest_config`), so it gives the
 # same answer on every run. This script is the search for new failures: it runs the
 # property tests (tests/ and the unit tests) from random seeds with VTZ_PROPTEST_SCALE
 # (default 8) times their cases, round after round, for MINUTES minutes (default 10). A
-# failure's seed is appended to the test's regression file (tests/NAME.proptest-regressions,
-# or proptest-regressions/ for a unit test), which CI then replays; commit it, and the
-# shrunk input printed in the log as a plain #[test] beside the property test.
+# failure's seed is appended to the test's regression file (tests/proptest-regressions/NAME.txt
+# for tests/suite/NAME.rs, or proptest-regressions/ for a unit test), which CI then replays;
+# commit it, and the shrunk input printed in the log as a plain #[test] beside the property
+# test.
 #
 #   tests/random_search.sh [MINUTES]        # log in target/random_search.log
 set -uo pipefail
@@ -25,10 +26,11 @@ names() {
        inb && match($0, /fn [a-z0-9_]+\(/) { print substr($0, RSTART + 3, RLENGTH - 4) }
        inb && match($0, /^ *\}/) && RLENGTH == ind + 1 { inb = 0 }' "$1"
 }
+# The integration tests are one binary, tests/suite (a module per file).
 declare -a targets filters
-for f in tests/*.rs; do
+for f in tests/suite/*.rs; do
   n=$(names "$f" | tr '\n' ' ')
-  [ -n "$n" ] && targets+=("--test" "$(basename "$f" .rs)") && filters+=($n)
+  [ -n "$n" ] && targets=("--test" "suite") && filters+=($n)
 done
 lib=$(for f in $(grep -rl 'proptest! {' src); do names "$f"; done | tr '\n' ' ')
 filters+=($lib)
@@ -47,5 +49,5 @@ while [ "$SECONDS" -lt "$end" ]; do
   fi
 done
 echo "$round rounds, $failed with a failure; regression files changed:" | tee -a "$log"
-git status --short -- '*.proptest-regressions' proptest-regressions | tee -a "$log"
+git status --short -- tests/proptest-regressions proptest-regressions | tee -a "$log"
 [ "$failed" -eq 0 ]

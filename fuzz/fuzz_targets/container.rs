@@ -1,5 +1,5 @@
 //! The `container` fuzz target: its body is `fuzz/targets/container.rs` (the stable tests replay it
-//! over the seeds, `tests/fuzz_seeds.rs`).
+//! over the seeds, `tests/suite/fuzz_seeds.rs`).
 #![no_main]
 
 #[path = "../targets/mod.rs"]

@@ -1,5 +1,5 @@
 //! The `readers` fuzz target: its body is `fuzz/targets/readers.rs` (the stable tests replay it
-//! over the seeds, `tests/fuzz_seeds.rs`).
+//! over the seeds, `tests/suite/fuzz_seeds.rs`).
 #![no_main]
 
 #[path = "../targets/mod.rs"]

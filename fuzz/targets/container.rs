@@ -6,7 +6,7 @@ use super::check;
 use std::io::Cursor;
 use vtz::{Decoder, Limits, SectionChoice, Window};
 
-/// One input of the `container` fuzz target (also replayed over its seeds by `tests/fuzz_seeds.rs`).
+/// One input of the `container` fuzz target (also replayed over its seeds by `tests/suite/fuzz_seeds.rs`).
 pub fn run(data: &[u8]) {
     let limits = Limits {
         max_samples: 1 << 16,

@@ -5,7 +5,7 @@
 //! are not.
 use vtz::{DecodePoints, Limits, RasterizePoints};
 
-/// One input of the `points` fuzz target (also replayed over its seeds by `tests/fuzz_seeds.rs`).
+/// One input of the `points` fuzz target (also replayed over its seeds by `tests/suite/fuzz_seeds.rs`).
 pub fn run(data: &[u8]) {
     let limits = Limits {
         max_samples: 1 << 20,

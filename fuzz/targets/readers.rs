@@ -5,7 +5,7 @@
 use vtz::formats::ReadOptions;
 use vtz::internals::formats;
 
-/// One input of the `readers` fuzz target (also replayed over its seeds by `tests/fuzz_seeds.rs`).
+/// One input of the `readers` fuzz target (also replayed over its seeds by `tests/suite/fuzz_seeds.rs`).
 pub fn run(data: &[u8]) {
     let Some((&pick, file)) = data.split_first() else {
         return;

@@ -9,7 +9,7 @@
 use super::check;
 use vtz::{EncodeOptions, ErrorBound, Method, Raster, SampleType, Window};
 
-/// One input of the `roundtrip` fuzz target (also replayed over its seeds by `tests/fuzz_seeds.rs`).
+/// One input of the `roundtrip` fuzz target (also replayed over its seeds by `tests/suite/fuzz_seeds.rs`).
 pub fn run(data: &[u8]) {
     if data.len() < 6 {
         return;

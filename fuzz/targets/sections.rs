@@ -7,7 +7,7 @@ use std::io::Cursor;
 use vtz::internals::container::{self, Header, SF_REQUIRED, Section, SectionKind};
 use vtz::{Decoder, Limits, SampleType, ValueMapping, Window};
 
-/// One input of the `sections` fuzz target (also replayed over its seeds by `tests/fuzz_seeds.rs`).
+/// One input of the `sections` fuzz target (also replayed over its seeds by `tests/suite/fuzz_seeds.rs`).
 pub fn run(data: &[u8]) {
     if data.len() < 7 {
         return;

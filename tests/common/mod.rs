@@ -1,4 +1,5 @@
-//! Helpers shared by the integration tests (`mod common;`) and the benches
+//! Helpers shared by the integration tests (`tests/suite/main.rs`; `use crate::common;` in
+//! its modules) and the benches
 //! (`#[path = "../tests/common/mod.rs"] mod common;`): one random generator, one synthetic
 //! terrain, one runner of the `vtz` binary, the corpora and temporary paths.
 //!

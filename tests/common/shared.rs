@@ -85,8 +85,9 @@ pub const PROPTEST_SEED: u64 = 0x7674_7a5f_6369_0035;
 
 /// The configuration of every property test (`#![proptest_config(common::proptest_config(n))]` in `tests/`, `crate::testutil::proptest_config(n)` in unit tests):
 /// in a normal run (CI, the README's test command) `cases` cases drawn from the fixed
-/// [`PROPTEST_SEED`], after the cases of the committed `*.proptest-regressions` file next to
-/// the test, which is read but never written. The same inputs on every run: a failure is a
+/// [`PROPTEST_SEED`], after the cases of the test's committed regression file (proptest's
+/// default place: `tests/proptest-regressions/NAME.txt` for `tests/suite/NAME.rs`,
+/// `proptest-regressions/PATH.txt` for `src/PATH.rs`), which is read but never written. The same inputs on every run: a failure is a
 /// regression, not luck. With [`PROPTEST_RANDOM`]`=1` the random search: a random seed,
 /// `cases` × [`PROPTEST_SCALE`] cases, and a failure's seed appended to the regression file
 /// (commit it, and the shrunk input as a plain `#[test]`).

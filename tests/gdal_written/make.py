@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Makes the small GeoTIFF and ASCII-grid fixtures of tests/gdal_written.rs with GDAL itself
+"""Makes the small GeoTIFF and ASCII-grid fixtures of tests/suite/gdal_written.rs with GDAL itself
 (run with /usr/bin/python3, which has osgeo; GDAL 3.6 made the committed files). Each is a
 layout GDAL writes that vtz once read or wrote wrong (issue 35, items 3, 4 and 16)."""
 import numpy as np

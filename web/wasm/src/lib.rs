@@ -99,7 +99,7 @@ pub extern "C" fn vtz_decode(ptr: *const u8, len: usize, flags: u32) -> i32 {
     })
 }
 
-/// The same conversion as the golden tests' `as_f32_bytes` (tests/golden.rs) and the raw
+/// The same conversion as the golden tests' `as_f32_bytes` (tests/suite/golden.rs) and the raw
 /// `.f32` writer: valid samples `as f32`, nodata samples the header's nodata `as f32` (or
 /// NaN).
 fn decode(s: &mut State, len: usize, nodata_as_value: bool) -> vtz::Result<()> {

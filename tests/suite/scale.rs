@@ -2,7 +2,7 @@
 //! scale; the output is laid out as `gdal_translate -outsize` lays it out (⌊w·s⌋ × ⌊h·s⌋
 //! over the source's extent, pixel is area); the scale is parsed exactly by one parser.
 
-mod common;
+use crate::common;
 
 use common::{Kind, bits, decode_opts, encode_opts, stderr, terrain, tmp, vtz};
 use vtz::{ErrorBound, Method, Raster, RasterType, SampleType, Scale};

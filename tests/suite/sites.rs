@@ -1,6 +1,6 @@
 //! The sites (Voronoi/Sibson) method: hard bound, determinism, windows, prefixes, bad input.
 
-mod common;
+use crate::common;
 
 use common::{Kind, Rng, bits, decode_opts, encode_opts, terrain};
 use proptest::prelude::*;

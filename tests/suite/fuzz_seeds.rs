@@ -6,7 +6,7 @@
 //! once fixed). A seed that panics there is a regression. The coverage-guided search itself (random,
 //! nightly) is `fuzz/smoke.sh` and the long runs of fuzz/README.md, run before a stop.
 
-#[path = "../fuzz/targets/mod.rs"]
+#[path = "../../fuzz/targets/mod.rs"]
 mod targets;
 
 use std::path::Path;

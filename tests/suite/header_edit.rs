@@ -3,7 +3,7 @@
 //! exactly what the edited header describes; never panic, never read outside a payload
 //! (Rust's bounds checks turn such a read into a panic, which this test would catch).
 
-mod common;
+use crate::common;
 
 use proptest::prelude::*;
 use std::io::Cursor;

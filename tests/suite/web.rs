@@ -3,7 +3,7 @@
 //! resampled independently, the levels against each other, the RGB formats against the vtz
 //! tiles; the CLI's errors.
 
-mod common;
+use crate::common;
 
 use common::*;
 use std::collections::BTreeMap;

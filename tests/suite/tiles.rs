@@ -1,9 +1,9 @@
-//! Tiled files (container versions 2, 4 and 5; tests/cloud.rs has versions 4's and 5's own): the bound on every sample, bytes independent of the
+//! Tiled files (container versions 2, 4 and 5; tests/suite/cloud.rs has versions 4's and 5's own): the bound on every sample, bytes independent of the
 //! thread count, windows equal to crops of the full decode, reads limited to the tiles a
 //! window touches, continuity of resampled surfaces across tile borders, and corrupt
 //! indexes and tiles rejected with clear errors.
 
-mod common;
+use crate::common;
 
 use common::{Kind, bits, decode_opts, encode_opts, terrain};
 use std::io::Cursor;
@@ -233,7 +233,7 @@ fn crc32(b: &[u8]) -> u32 {
 }
 
 /// Version 2's index (at the end of the file), on its golden file: vtz no longer writes
-/// version 2 but decodes it forever (tests/cloud.rs checks version 4's index).
+/// version 2 but decodes it forever (tests/suite/cloud.rs checks version 4's index).
 #[test]
 fn corrupt_version_2_indexes_are_rejected_naming_the_tile() {
     let path =

@@ -2,7 +2,7 @@
 //! (exactness when lossless), the data's lattice, `--effort`, and flat regions that decode
 //! to their exact value under every method.
 
-mod common;
+use crate::common;
 
 use common::{Kind, decode_opts, encode_opts, read_corpus, terrain, tmp, vtz};
 use proptest::prelude::*;
@@ -134,7 +134,7 @@ fn found_a_hill_of_f32_at_60_effort_1() {
     random_raster_case(Kind::Hill, 34, 38, 0, false, SampleType::F32, 60.0, 1).unwrap();
 }
 
-/// Found by `tests/random_search.sh` (now in tests/residual.proptest-regressions): an f32
+/// Found by `tests/random_search.sh` (now in tests/proptest-regressions/residual.txt): an f32
 /// hill whose samples near 0 need a power-of-two step finer than 2^-38 of its peak has no
 /// lattice within the section's ±2^38; the residual layer says so (`Unmet`) and `best`
 /// stores it losslessly.

@@ -1,7 +1,7 @@
 //! What a new user hits (issue 9): one test per item found by trying vtz as a new user, each
 //! asserting the behaviour that user should meet.
 
-mod common;
+use crate::common;
 use common::*;
 use std::path::Path;
 use vtz::internals::container;
@@ -29,7 +29,7 @@ fn kauai_vtz(dir: &tempfile::TempDir) -> String {
 }
 
 // 1. `--scale` far beyond the limits: a one-line limit error, exit 1, no output, nothing
-//    allocated (tests/limits.rs covers the library side).
+//    allocated (tests/suite/limits.rs covers the library side).
 #[test]
 fn item1_decode_scale_beyond_the_limit_is_refused_before_allocating() {
     let d = tempfile::tempdir().unwrap();

@@ -7,7 +7,7 @@
 //! and return when it is absent. The sidecar contents (.prj, world file, .aux.xml) and the
 //! GDAL_METADATA round trips are checked without GDAL.
 
-mod common;
+use crate::common;
 
 use common::{decode_opts, encode_opts, ok, tmp, vtz};
 use serde_json::Value;

@@ -1,7 +1,7 @@
 //! `vtz lsystem` and `vtz::lsystem`: the fractal-plant paper's Table I, the closed hull
 //! cover, unknown symbols, and the OBJ read back by an independent parser.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use vtz::lsystem::{Cover, Frame, LSystem, counts};

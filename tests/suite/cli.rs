@@ -1,6 +1,6 @@
 //! The `vtz` binary: exit codes, one-line errors, atomic and non-clobbering output.
 
-mod common;
+use crate::common;
 
 use common::{corpus, json, stderr, tmp, vtz};
 use std::path::{Path, PathBuf};

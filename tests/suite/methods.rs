@@ -1,7 +1,7 @@
 //! The four representations through the container: each meets its bound, files may carry
 //! several sections for comparison, and `--section` picks one.
 
-mod common;
+use crate::common;
 
 use common::{corpus, decode_opts, encode_opts, read_corpus, stderr, tmp, vtz};
 use std::path::Path;

@@ -2,7 +2,7 @@
 //! at every bound, lossless included (item 8); a float raster on a lattice of another
 //! unit's step (whole feet × 0.3048 in f32) codes on that lattice, bit for bit (item 7).
 
-mod common;
+use crate::common;
 
 use common::{encode_opts, read_corpus};
 use flate2::Compression;

@@ -3,7 +3,7 @@
 //! Runs on a small synthetic raster with the sibson and grid methods only, so it is fast
 //! and independent of the other methods.
 
-mod common;
+use crate::common;
 
 use common::{Kind, stderr, terrain, tmp, vtz};
 use std::process::Output;

@@ -11,7 +11,7 @@
 //! merged within `COALESCE_GAP`), checked against the server's own log.
 #![cfg(all(feature = "remote", feature = "cli"))]
 
-mod common;
+use crate::common;
 
 use common::{Counting, Kind, bits, encode_opts, terrain};
 use std::io::{Read, Write};

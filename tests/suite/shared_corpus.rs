@@ -3,7 +3,7 @@
 //! their own format without change, and encode losslessly and within bounds.
 //! Skipped, with a message, when `../shared/corpus` is absent.
 
-mod common;
+use crate::common;
 
 use common::{assert_same, encode_opts, shared_corpus, stderr, vtz};
 use std::ffi::OsStr;

@@ -1,6 +1,6 @@
 //! Container and grid-section tests: round trips, bounds, truncation, corruption, garbage.
 
-mod common;
+use crate::common;
 
 use common::{Kind, Rng, assert_same, decode_opts, encode_opts};
 use proptest::prelude::*;

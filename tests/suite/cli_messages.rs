@@ -1,7 +1,7 @@
 //! What a user reads: error messages that name a file once, exit codes by cause, outputs
 //! checked before the work, temporaries never left behind, `info` showing the bound.
 
-mod common;
+use crate::common;
 
 use common::{corpus, json, stderr, tmp, vtz};
 

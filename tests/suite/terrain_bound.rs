@@ -6,7 +6,7 @@
 //! `tests/js/check_terrain.mjs` checks against an independent quantized-mesh decoder in
 //! `.ci/run`), against the source samples, with no vtz code.
 
-mod common;
+use crate::common;
 
 use common::{corpus, stderr, tmp, vtz};
 use std::collections::BTreeMap;

@@ -2,10 +2,10 @@
 //!
 //! Each `tests/golden/NAME.vtz` decodes to exactly `NAME.expected.f32` (little-endian f32,
 //! nodata samples hold the header's nodata value). Regenerate only deliberately, for a new
-//! format version: `VTZ_BLESS_GOLDEN=1 cargo test --test golden` writes files that are
+//! format version: `VTZ_BLESS_GOLDEN=1 cargo test --test suite golden::` writes files that are
 //! missing; existing golden files are never rewritten.
 
-mod common;
+use crate::common;
 
 use common::{decode_opts, encode_opts, read_corpus};
 use std::path::{Path, PathBuf};

@@ -3,7 +3,7 @@
 //! parsers in the library's tests and by the Khronos validator and an npm quantized-mesh
 //! decoder in `.ci/run`.)
 
-mod common;
+use crate::common;
 
 use common::{corpus, json, stderr, tmp, vtz};
 use std::path::Path;

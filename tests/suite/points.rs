@@ -3,7 +3,7 @@
 //! positions, and round trips of the ground returns through LAZ (within the grid) and CSV
 //! (exact). Skipped, with a message, when the files are absent.
 
-mod common;
+use crate::common;
 
 use common::{shared_corpus, skip};
 use std::path::PathBuf;

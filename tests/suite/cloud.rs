@@ -8,7 +8,7 @@ use std::io::Cursor;
 use vtz::source::HEAD_BYTES;
 use vtz::{Decoder, EncodeOptions, Error, ErrorBound, Window};
 
-mod common;
+use crate::common;
 use common::{Counting, Kind, terrain};
 
 fn crop(r: &vtz::Raster, w: Window) -> Vec<f64> {

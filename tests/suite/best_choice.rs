@@ -2,7 +2,7 @@
 //! rows) and encodes in full only the methods the probe cannot rule out, yet writes the
 //! file of the exhaustive choice (every method encoded in full, the smallest kept).
 
-mod common;
+use crate::common;
 use common::*;
 use vtz::{ErrorBound, Method};
 

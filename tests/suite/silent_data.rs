@@ -1,7 +1,7 @@
 //! Data and sizes that went wrong silently (issue 25, items 7 and 10–15): each test asserts
 //! what a user should meet instead.
 
-mod common;
+use crate::common;
 use common::*;
 use std::path::Path;
 use vtz::{ErrorBound, Method, Raster, SampleType, ValueMapping};

@@ -1,6 +1,6 @@
 //! The `vtz render` command and `vtz compare --png`: pictures of the size and kind expected.
 
-mod common;
+use crate::common;
 
 use common::{corpus, ok, stderr, tmp, vtz};
 

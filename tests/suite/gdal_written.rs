@@ -7,7 +7,7 @@
 //! vtz's outputs is checked with `gdal_translate` / `gdalinfo` where they are installed; where
 //! they are not, those checks print `SKIPPED (gdal_translate not found): …` on stderr.
 
-mod common;
+use crate::common;
 
 use common::{ok, stderr, tmp, vtz};
 use std::io::Write as _;

@@ -2,7 +2,7 @@
 //! sample is counted once, ε is consistent, and the GeoJSON reads back in GDAL's `ogrinfo`
 //! (when installed; otherwise the test prints `SKIPPED (ogrinfo not found): …` on stderr).
 
-mod common;
+use crate::common;
 
 use common::{Kind, encode_opts, ok, stderr, terrain, tmp, vtz};
 use serde_json::Value;

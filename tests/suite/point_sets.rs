@@ -7,7 +7,7 @@
 // Columns and group members index several parallel arrays at once.
 #![allow(clippy::needless_range_loop)]
 
-mod common;
+use crate::common;
 
 use common::{ok, stderr, tmp, vtz};
 use proptest::prelude::*;

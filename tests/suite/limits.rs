@@ -2,7 +2,7 @@
 //! `--sites`, `--level`) or from their product — is checked against `Limits` before
 //! anything of that size is allocated; over the limit is `LimitExceeded` naming the size.
 
-mod common;
+use crate::common;
 
 use common::{Kind, decode_opts as with, terrain, tmp, vtz};
 use vtz::{DecodeOptions, Decoder, Error, ErrorBound, Limits, Method, SampleType, Scale, Window};
