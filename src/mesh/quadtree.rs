@@ -930,10 +930,11 @@ mod tests {
         assert_eq!(first, vec![(0, 0), (0, 29), (39, 0), (39, 29)]);
     }
 
-    /// A 2000×1500 raster (3 M samples) in well under a few seconds, and the triangulation
-    /// of millions of points (timed in release builds only: `cargo test --release`).
+    /// A 2000×1500 raster (3 M samples): selection at three thresholds and the triangulation
+    /// of millions of points finish with the expected counts. Their times are printed, not
+    /// checked (speed is measured in the benches).
     #[test]
-    fn millions_of_samples_are_quick() {
+    fn millions_of_samples_select_and_mesh() {
         let (w, h) = (2000, 1500);
         let mut rng = Rng(11);
         let v: Vec<f64> = (0..w * h)
@@ -954,9 +955,6 @@ mod tests {
         eprintln!("3 selections of {w}x{h}: {took:?}, {counts:?} points");
         assert_eq!(counts[2], 9);
         assert!(counts[0] > 1_000_000, "{counts:?}");
-        if !cfg!(debug_assertions) {
-            assert!(took.as_secs_f64() < 2.0, "3 selections took {took:?}");
-        }
         // Meshing: 2.65 M points in release builds, 0.49 M in debug builds.
         let t = if cfg!(debug_assertions) { 35.0 } else { 0.0 };
         let pts = select(&v, &all, w, h, t).unwrap();
@@ -965,12 +963,5 @@ mod tests {
         let took = t1.elapsed();
         eprintln!("linear_errors of {} points: {took:?}", pts.len());
         assert!(max.is_finite());
-        if !cfg!(debug_assertions) {
-            assert!(
-                took.as_secs_f64() < 10.0,
-                "{} points meshed in {took:?}",
-                pts.len()
-            );
-        }
     }
 }
