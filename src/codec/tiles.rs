@@ -13,6 +13,7 @@ use crate::model::{Raster, RowSource, Window};
 use crate::quant::ErrorBound;
 use crate::threads::{pool, with_threads};
 use std::io::{Seek, Write};
+use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// The tile side an encode uses unless told (`--tile`), picked by measurement
@@ -318,9 +319,11 @@ pub(crate) fn open(
 /// Decode a window (or all) of a file band by band, top to bottom, each band handed to
 /// `sink`: the one decode path. An untiled file is the one-tile case: its one tile is the
 /// raster, decoded (the window of it, at the scale or overview asked, on every thread) as
-/// one band with nothing to blend. A tiled file's tiles go through [`decode_tiles`], an
-/// overview of them through [`decode_overview`] (one band). Gives back the tiles skipped
-/// as corrupt (`opts.skip_corrupt`).
+/// one band with nothing to blend. A tiled file's tiles go through [`decode_tiles`] (bands
+/// blended from them), an overview of them through [`decode_overview`] (one band, each
+/// sample from the tile whose core holds it); both read and decode their tiles in the one
+/// tile loop, [`decode_tile_rows`]. Gives back the tiles skipped as corrupt
+/// (`opts.skip_corrupt`).
 pub(crate) fn decode_bands(
     rd: &mut RasterReader,
     opts: &DecodeOptions,
@@ -341,34 +344,116 @@ pub(crate) fn decode_bands(
     decode_tiles(rd, opts, sink, progress)
 }
 
-/// Decode tiles from their blocks as read (for a full decode or an overview), in parallel
-/// on `pool`, each on one thread: tile `k` (with what the caller keeps of it, `T`) with the
-/// options `tile_opts` gives it, its errors naming it. `tick` is called as each finishes.
-fn decode_blocks<T: Send>(
-    rd: &RasterReader,
-    blocks: Vec<(usize, T, Result<Vec<u8>>)>,
+/// Decoded tiles as [`decode_tile_rows`] hands them out: each tile's index, what the caller
+/// keeps of it and its decode.
+type DecodedTiles<T> = Vec<(usize, T, Result<Raster>)>;
+
+/// The overview's columns and rows (ranges of its window) that one tile's core holds.
+type OverviewPart = (Range<usize>, Range<usize>);
+
+/// The tiles a tiled decode reads, by row of tiles, and how: each tile with what the
+/// caller keeps of it (`T`); at overview `level` (0: whole blocks; k: the prefix of each
+/// block that overview k needs); at most `read_rows` rows of tiles in one read and, past the
+/// first row, at most `read_bytes` bytes of blocks; decoded `decode_rows` rows at a time.
+struct TileRows<T> {
+    rows: Vec<Vec<(usize, T)>>,
+    level: u32,
+    read_rows: usize,
+    read_bytes: u64,
+    decode_rows: usize,
+}
+
+/// The one tile loop of a tiled decode, at full resolution or of an overview. The rows of
+/// tiles of `plan` are read in batches, one read per batch: a remote source fetches a
+/// batch's blocks at once, and version 5's heads as one range. Each batch is decoded on
+/// `pool`, every tile on one thread with the options `tile_opts` gives it, its errors naming
+/// it. The decoded tiles go to `place` one decode group at a time, in row order, with the
+/// count of rows of tiles decoded so far. A tile that fails as corrupt under
+/// `opts.skip_corrupt` goes to `place` as its error and is named in the list given back. Any
+/// other error ends the decode. Progress counts tiles.
+fn decode_tile_rows<T: Send>(
+    rd: &mut RasterReader,
+    mut plan: TileRows<T>,
+    opts: &DecodeOptions,
     pool: &crate::threads::Pool,
     tile_opts: &(dyn Fn(usize, &T) -> DecodeOptions + Sync),
-    tick: &(dyn Fn() + Sync),
-) -> Vec<(usize, T, Result<Raster>)> {
+    progress: &(dyn Fn(f64) + Sync),
+    place: &mut dyn FnMut(DecodedTiles<T>, usize) -> Result<()>,
+) -> Result<Vec<String>> {
     use rayon::prelude::*;
-    let opener = rd.opener();
+    let total = plan.rows.iter().map(Vec::len).sum::<usize>().max(1);
+    let done = AtomicUsize::new(0);
     let grid = rd.grid();
-    pool.install(|| {
-        blocks
-            .into_par_iter()
-            .map(|(k, t, block)| {
-                let r = block.and_then(|b| {
-                    let mut trd = opener.open(k, b)?;
-                    let o = tile_opts(k, &t);
-                    with_threads(1, || decode::decode_reader(&mut trd, &o, &|_| {}))
-                        .map_err(|e| e.context(tile_name(&grid, k)))
-                });
-                tick();
-                (k, t, r)
-            })
-            .collect()
-    })
+    let mut skipped = Vec::new();
+    let n = plan.rows.len();
+    let mut i = 0;
+    while i < n {
+        // The batch: rows i..j.
+        let (mut j, mut bytes) = (i, 0u64);
+        while j < n && j - i < plan.read_rows {
+            if plan.read_bytes != u64::MAX {
+                let b: u64 = plan.rows[j]
+                    .iter()
+                    .map(|(t, _)| rd.tiles()[*t].prefix(plan.level))
+                    .sum();
+                if j > i && bytes + b > plan.read_bytes {
+                    break;
+                }
+                bytes += b;
+            }
+            j += 1;
+        }
+        let ks: Vec<usize> = plan.rows[i..j]
+            .iter()
+            .flat_map(|r| r.iter().map(|(k, _)| *k))
+            .collect();
+        let got = rd.tile_blocks(&ks, plan.level)?;
+        if got.len() != ks.len() {
+            return Err(Error::invalid("a batch of tiles was not read whole"));
+        }
+        let mut got = got.into_iter();
+        let opener = rd.opener();
+        for g in (i..j).step_by(plan.decode_rows.max(1)) {
+            let g1 = (g + plan.decode_rows.max(1)).min(j);
+            let blocks: Vec<(usize, T, Result<Vec<u8>>)> = plan.rows[g..g1]
+                .iter_mut()
+                .flat_map(std::mem::take)
+                .zip(got.by_ref())
+                .map(|((k, t), b)| (k, t, b))
+                .collect();
+            let out: DecodedTiles<T> = pool.install(|| {
+                blocks
+                    .into_par_iter()
+                    .map(|(k, t, block)| {
+                        let r = block.and_then(|b| {
+                            let mut trd = opener.open(k, b)?;
+                            let o = tile_opts(k, &t);
+                            with_threads(1, || decode::decode_reader(&mut trd, &o, &|_| {}))
+                                .map_err(|e| e.context(tile_name(&grid, k)))
+                        });
+                        let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+                        progress(d as f64 / total as f64);
+                        (k, t, r)
+                    })
+                    .collect()
+            });
+            let mut placed = Vec::with_capacity(out.len());
+            for (k, t, r) in out {
+                let r = match r {
+                    Err(e) if opts.skip_corrupt && matches!(e, Error::Corrupt { .. }) => {
+                        skipped.push(e.to_string());
+                        Err(e)
+                    }
+                    Err(e) => return Err(e),
+                    ok => ok,
+                };
+                placed.push((k, t, r));
+            }
+            place(placed, g1)?;
+        }
+        i = j;
+    }
+    Ok(skipped)
 }
 
 /// A decoded tile: the part of its coded samples inside the window (raster coordinates),
@@ -422,9 +507,6 @@ fn decode_tiles(
     };
     let pool = pool(opts.threads)?;
     let touched = grid.touching_ext(win);
-    let total = touched.len().max(1);
-    let done = AtomicUsize::new(0);
-    let mut skipped = Vec::new();
     let cols = grid.cols() as usize;
     let (r0, r1) = (win.y / th, (win.y + win.height - 1) / th);
     let (first_row, last_row) = (
@@ -441,28 +523,14 @@ fn decode_tiles(
     let want = (4 * pool.current_num_threads()).div_ceil(per_row);
     let budget = (64usize << 20) / (per_row * tile_samples).max(1);
     let group = want.min(budget.saturating_sub(2)).max(1);
-    // Decoded tiles, kept while a band they contribute to is still to come.
-    let mut decoded: std::collections::BTreeMap<usize, Decoded> = std::collections::BTreeMap::new();
-    let mut next_row = first_row;
-    let fill = header.nodata.unwrap_or(f64::NAN);
-    for r in r0..=r1 {
-        // Band r blends tiles of rows r − 1 ..= r + 1.
-        while next_row <= (r + 1).min(last_row) {
-            let rows = next_row..(next_row + group).min(last_row + 1);
-            next_row = rows.end;
-            let ks: Vec<usize> = touched
+    // Each tile with its coded samples inside the window, in raster coordinates.
+    let rows: Vec<Vec<(usize, Window)>> = (first_row..=last_row)
+        .map(|row| {
+            touched
                 .iter()
                 .copied()
-                .filter(|k| rows.contains(&(k / cols)))
-                .collect();
-            // One read for the blocks of these rows of tiles (a remote source fetches them
-            // at once); decoding is parallel.
-            let blocks: Vec<(usize, Window, Result<Vec<u8>>)> = ks
-                .iter()
-                .copied()
-                .zip(rd.tile_blocks(&ks, 0)?)
-                .map(|(k, b)| {
-                    // The tile's coded samples inside the window, in raster coordinates.
+                .filter(|k| k / cols == row)
+                .map(|k| {
                     let e = grid.ext(k);
                     let x0 = win.x.max(e.x);
                     let x1 = (win.x + win.width).min(e.x + e.width);
@@ -474,56 +542,66 @@ fn decode_tiles(
                         width: x1 - x0,
                         height: y1 - y0,
                     };
-                    (k, sub, b)
+                    (k, sub)
                 })
+                .collect()
+        })
+        .collect();
+    let plan = TileRows {
+        rows,
+        level: 0,
+        read_rows: group,
+        read_bytes: u64::MAX,
+        decode_rows: group,
+    };
+    let tile_opts = |k: usize, sub: &Window| {
+        let e = grid.ext(k);
+        DecodeOptions {
+            window: Some(Window {
+                x: sub.x - e.x,
+                y: sub.y - e.y,
+                ..*sub
+            }),
+            threads: 1,
+            scale: None,
+            ..opts.clone()
+        }
+    };
+    // Decoded tiles, kept while a band they contribute to is still to come.
+    let mut decoded: std::collections::BTreeMap<usize, Decoded> = std::collections::BTreeMap::new();
+    let fill = header.nodata.unwrap_or(f64::NAN);
+    // The next band of tiles to hand out: band r blends tiles of rows r − 1 ..= r + 1, so it
+    // goes out once the rows of tiles up to r + 1 are decoded.
+    let mut r = r0;
+    let mut place = |out: DecodedTiles<Window>, rows_done: usize| -> Result<()> {
+        for (k, sub, raster) in out {
+            let wx = (sub.x..sub.x + sub.width)
+                .map(|x| grid.weight_x(k, x))
                 .collect();
-            let tile_opts = |k: usize, sub: &Window| {
-                let e = grid.ext(k);
-                DecodeOptions {
-                    window: Some(Window {
-                        x: sub.x - e.x,
-                        y: sub.y - e.y,
-                        ..*sub
-                    }),
-                    threads: 1,
-                    scale: None,
-                    ..opts.clone()
-                }
-            };
-            let tick = || {
-                let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-                progress(n as f64 / total as f64);
-            };
-            let out = decode_blocks(rd, blocks, &pool, &tile_opts, &tick);
-            for (k, sub, raster) in out {
-                let wx = (sub.x..sub.x + sub.width)
-                    .map(|x| grid.weight_x(k, x))
-                    .collect();
-                let raster = match raster {
-                    Err(e) if opts.skip_corrupt && matches!(e, Error::Corrupt { .. }) => {
-                        skipped.push(e.to_string());
-                        Err(e)
-                    }
-                    Err(e) => return Err(e),
-                    ok => ok,
-                };
-                decoded.insert(k, Decoded { sub, raster, wx });
+            decoded.insert(k, Decoded { sub, raster, wx });
+        }
+        let next_row = first_row.saturating_add(rows_done);
+        while r <= r1 && (r + 1).min(last_row) < next_row {
+            // Band r: the window's rows in core row r, handed out SUB_BAND rows at a time to
+            // keep the buffers small.
+            let band_y0 = (r * th).max(win.y);
+            let band_y1 = ((r + 1) * th).min(win.y + win.height);
+            for sy0 in (band_y0..band_y1).step_by(SUB_BAND) {
+                let sy1 = (sy0 + SUB_BAND).min(band_y1);
+                let mut band = blend(&grid, &decoded, win, (sy0, sy1), fill, &header, &pool);
+                band.georef = header.georef.as_ref().map(|g| g.window(win.x, sy0));
+                band.gdal_metadata = gdal.clone();
+                sink(band)?;
+                // Tiles that code no later row are done with.
+                decoded.retain(|_, d| d.sub.y + d.sub.height > sy1);
             }
+            r += 1;
         }
-        // Band r: the window's rows in core row r, handed out SUB_BAND rows at a time to
-        // keep the buffers small.
-        let band_y0 = (r * th).max(win.y);
-        let band_y1 = ((r + 1) * th).min(win.y + win.height);
-        for sy0 in (band_y0..band_y1).step_by(SUB_BAND) {
-            let sy1 = (sy0 + SUB_BAND).min(band_y1);
-            let mut band = blend(&grid, &decoded, win, (sy0, sy1), fill, &header, &pool);
-            band.georef = header.georef.as_ref().map(|g| g.window(win.x, sy0));
-            band.gdal_metadata = gdal.clone();
-            sink(band)?;
-            // Tiles that code no later row are done with.
-            decoded.retain(|_, d| d.sub.y + d.sub.height > sy1);
-        }
-    }
+        Ok(())
+    };
+    let skipped = decode_tile_rows(rd, plan, opts, &pool, &tile_opts, progress, &mut place)?;
+    // Bands no row of tiles reaches (none when the window touches a tile).
+    place(Vec::new(), usize::MAX)?;
     Ok(skipped)
 }
 
@@ -675,68 +753,41 @@ fn decode_overview(
         out
     };
     let (tcols, trows) = (span(&xs, tw), span(&ys, th));
-    let total = (tcols.len() * trows.len()).max(1);
     let fill = header.nodata.unwrap_or(f64::NAN);
     let n = win.width * win.height;
     let mut data = vec![fill; n];
     let mut mask = vec![false; n];
-    let mut skipped = Vec::new();
     let pool = pool(opts.threads)?;
-    let done = AtomicUsize::new(0);
-    let row_tiles =
-        |tr: usize| -> Vec<usize> { tcols.iter().map(|(tc, _)| tr * cols + tc).collect() };
-    // Blocks read for rows of tiles still to decode: one read for as many rows of tiles
-    // as fit in OVERVIEW_READ_BYTES (at least one row), of each block the prefix this
-    // overview needs (version 4 and 5: its first chunks; in version 5 at the file's split
-    // or coarser those lie together in the heads, and the whole overview is one range).
-    let mut fetched: std::collections::VecDeque<Vec<Result<Vec<u8>>>> = Default::default();
-    for (i, (tr, rows)) in trows.iter().enumerate() {
-        let ts = row_tiles(*tr);
-        if fetched.is_empty() {
-            let (mut all, mut sizes, mut bytes) = (Vec::new(), Vec::new(), 0u64);
-            for (tr2, _) in &trows[i..] {
-                let t2 = row_tiles(*tr2);
-                let b: u64 = t2.iter().map(|&t| rd.tiles()[t].prefix(k)).sum();
-                if !sizes.is_empty() && bytes + b > OVERVIEW_READ_BYTES {
-                    break;
-                }
-                bytes += b;
-                sizes.push(t2.len());
-                all.extend(t2);
-            }
-            let mut got = rd.tile_blocks(&all, k)?.into_iter();
-            for n in sizes {
-                fetched.push_back(got.by_ref().take(n).collect());
-            }
-        }
-        let got = fetched
-            .pop_front()
-            .ok_or_else(|| Error::invalid("overview: a row of tiles was not read"))?;
-        let blocks: Vec<(usize, std::ops::Range<usize>, Result<Vec<u8>>)> = ts
-            .iter()
-            .zip(&tcols)
-            .zip(got)
-            .map(|((&t, (_, cr)), b)| (t, cr.clone(), b))
-            .collect();
-        let tile_opts = |_: usize, _: &std::ops::Range<usize>| DecodeOptions {
-            window: None,
-            threads: 1,
-            ..opts.clone()
-        };
-        let tick = || {
-            let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-            progress(d as f64 / total as f64);
-        };
-        let decoded = decode_blocks(rd, blocks, &pool, &tile_opts, &tick);
-        for (t, cr, r) in decoded {
-            let r = match r {
-                Ok(r) => r,
-                Err(e) if opts.skip_corrupt && matches!(e, Error::Corrupt { .. }) => {
-                    skipped.push(e.to_string());
-                    continue;
-                }
-                Err(e) => return Err(e),
-            };
+    // Each tile with the overview's columns and rows its core holds. Blocks are read for as
+    // many rows of tiles as fit in OVERVIEW_READ_BYTES (at least one row), of each block the
+    // prefix this overview needs (version 4 and 5: its first chunks; in version 5 at the
+    // file's split or coarser those lie together in the heads, and the whole overview is one
+    // range); they are decoded a row of tiles at a time.
+    let rows: Vec<Vec<(usize, OverviewPart)>> = trows
+        .iter()
+        .map(|(tr, yr)| {
+            tcols
+                .iter()
+                .map(|(tc, cr)| (tr * cols + tc, (cr.clone(), yr.clone())))
+                .collect()
+        })
+        .collect();
+    let plan = TileRows {
+        rows,
+        level: k,
+        read_rows: usize::MAX,
+        read_bytes: OVERVIEW_READ_BYTES,
+        decode_rows: 1,
+    };
+    let tile_opts = |_: usize, _: &OverviewPart| DecodeOptions {
+        window: None,
+        threads: 1,
+        ..opts.clone()
+    };
+    let mut place = |out: DecodedTiles<OverviewPart>, _| {
+        // A tile skipped as corrupt leaves its samples invalid.
+        for (t, (cr, yr), r) in out {
+            let Ok(r) = r else { continue };
             let e = grid.ext(t);
             // The nearest point of the tile's lattice (ties to the lower), inside the tile.
             let near =
@@ -745,7 +796,7 @@ fn decode_overview(
                 .iter()
                 .map(|&x| near(x, e.x, r.width))
                 .collect();
-            for yi in rows.clone() {
+            for yi in yr {
                 let my = near(ys[yi], e.y, r.height);
                 for (xi, &m) in cr.clone().zip(&mx) {
                     let i = my * r.width + m;
@@ -756,7 +807,9 @@ fn decode_overview(
                 }
             }
         }
-    }
+        Ok(())
+    };
+    let skipped = decode_tile_rows(rd, plan, opts, &pool, &tile_opts, progress, &mut place)?;
     let gdal = rd
         .gdal_metadata()?
         .map(|x| crate::formats::without_statistics(&x).into_owned());
