@@ -186,6 +186,23 @@ pub fn corpus(name: &str) -> String {
         .into_owned()
 }
 
+/// The golden files' folder, `tests/golden` (spec/FORMAT.md: decoded forever).
+pub fn golden_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden")
+}
+
+/// Every golden `.vtz` file, sorted by name; fails when they are missing.
+pub fn golden_files() -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(golden_dir())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "vtz"))
+        .collect();
+    v.sort();
+    assert!(v.len() >= 3, "the golden files are missing");
+    v
+}
+
 /// Read `corpus/NAME`.
 pub fn read_corpus(name: &str) -> Raster {
     vtz::read_path(Path::new(&corpus(name)), &Default::default()).unwrap()

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use vtz::{EncodeOptions, ErrorBound, Method, Window};
 
 fn dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden")
+    common::golden_dir()
 }
 
 /// The source of every golden file but the coast ones: a 64×48 window of the Kauai SRTM

@@ -12,7 +12,7 @@ use vtz::{Decoder, Limits, SampleType, SectionChoice, ValueMapping};
 
 /// The golden files: one per method, each with a mask section.
 fn goldens() -> Vec<Vec<u8>> {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden");
+    let dir = crate::common::golden_dir();
     ["fis", "grid", "haar", "sites"]
         .iter()
         .map(|m| std::fs::read(dir.join(format!("v1_kauai_crop_{m}.vtz"))).unwrap())

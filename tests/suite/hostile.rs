@@ -7,7 +7,7 @@
 //!
 //! The same edits make hostile fuzz seeds (`fuzz/hostile.py`, run by `fuzz/make_seeds.py`).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -272,24 +272,13 @@ fn run(args: &[&Path]) -> Cost {
     }
 }
 
-fn goldens() -> Vec<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden");
-    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "vtz"))
-        .collect();
-    v.sort();
-    v
-}
-
 #[test]
 #[cfg(target_os = "linux")]
 fn every_hostile_header_decodes_or_fails_within_budget() {
     let d = tempfile::tempdir().unwrap();
     let mut failures = Vec::new();
     let mut count = 0;
-    for g in goldens() {
+    for g in crate::common::golden_files() {
         let data = std::fs::read(&g).unwrap();
         let stem = g.file_stem().unwrap().to_string_lossy().into_owned();
         let out = d.path().join(if u16_at(&data, 8) == 3 {

@@ -17,7 +17,7 @@ use common::{Counting, Kind, bits, encode_opts, terrain};
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::ops::Range;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::{Child, Command, Output, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -339,18 +339,6 @@ fn predicted(calls: &[Vec<Range<u64>>], len: u64) -> Vec<Range<u64>> {
     out
 }
 
-fn golden_files() -> Vec<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden");
-    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "vtz"))
-        .collect();
-    v.sort();
-    assert!(v.len() >= 3, "the golden files are missing");
-    v
-}
-
 /// A tiled file large enough that windows fetch a few of its tiles: 1024² i16 samples,
 /// 256² tiles (16), the residual layer within 0.5.
 fn tiled_file() -> Vec<u8> {
@@ -439,7 +427,7 @@ fn info_json(o: &Output) -> serde_json::Value {
 fn http_reads_give_the_local_bits_for_every_golden_file_and_window() {
     let Some(ng) = Nginx::start() else { return };
     let dir = tempfile::tempdir().unwrap();
-    for g in golden_files() {
+    for g in crate::common::golden_files() {
         let name = g.file_name().unwrap().to_string_lossy().into_owned();
         ng.put(&name, &std::fs::read(&g).unwrap());
         let url = ng.url(&name);
@@ -773,7 +761,7 @@ fn s3_reads_uploads_and_errors() {
     let env = s3.env();
     // Reads: the local bits for every golden file and the tiled file's windows, with the
     // requests predicted from the local reads.
-    for g in golden_files() {
+    for g in crate::common::golden_files() {
         let name = g.file_name().unwrap().to_string_lossy().into_owned();
         let bytes = std::fs::read(&g).unwrap();
         s3.put(&format!("/vtz-test/golden/{name}"), &bytes);
