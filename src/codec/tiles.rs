@@ -354,12 +354,13 @@ type OverviewPart = (Range<usize>, Range<usize>);
 /// The tiles a tiled decode reads, by row of tiles, and how: each tile with what the
 /// caller keeps of it (`T`); at overview `level` (0: whole blocks; k: the prefix of each
 /// block that overview k needs); at most `read_rows` rows of tiles in one read and, past the
-/// first row, at most `read_bytes` bytes of blocks; decoded `decode_rows` rows at a time.
+/// first row, at most `read_bytes` bytes of blocks (`None`: no byte limit); decoded
+/// `decode_rows` (at least 1) rows at a time.
 struct TileRows<T> {
     rows: Vec<Vec<(usize, T)>>,
     level: u32,
     read_rows: usize,
-    read_bytes: u64,
+    read_bytes: Option<u64>,
     decode_rows: usize,
 }
 
@@ -386,17 +387,18 @@ fn decode_tile_rows<T: Send>(
     let grid = rd.grid();
     let mut skipped = Vec::new();
     let n = plan.rows.len();
+    let step = plan.decode_rows.max(1);
     let mut i = 0;
     while i < n {
         // The batch: rows i..j.
         let (mut j, mut bytes) = (i, 0u64);
         while j < n && j - i < plan.read_rows {
-            if plan.read_bytes != u64::MAX {
+            if let Some(limit) = plan.read_bytes {
                 let b: u64 = plan.rows[j]
                     .iter()
                     .map(|(t, _)| rd.tiles()[*t].prefix(plan.level))
                     .sum();
-                if j > i && bytes + b > plan.read_bytes {
+                if j > i && bytes + b > limit {
                     break;
                 }
                 bytes += b;
@@ -413,8 +415,8 @@ fn decode_tile_rows<T: Send>(
         }
         let mut got = got.into_iter();
         let opener = rd.opener();
-        for g in (i..j).step_by(plan.decode_rows.max(1)) {
-            let g1 = (g + plan.decode_rows.max(1)).min(j);
+        for g in (i..j).step_by(step) {
+            let g1 = (g + step).min(j);
             let blocks: Vec<(usize, T, Result<Vec<u8>>)> = plan.rows[g..g1]
                 .iter_mut()
                 .flat_map(std::mem::take)
@@ -551,7 +553,7 @@ fn decode_tiles(
         rows,
         level: 0,
         read_rows: group,
-        read_bytes: u64::MAX,
+        read_bytes: None,
         decode_rows: group,
     };
     let tile_opts = |k: usize, sub: &Window| {
@@ -776,7 +778,7 @@ fn decode_overview(
         rows,
         level: k,
         read_rows: usize::MAX,
-        read_bytes: OVERVIEW_READ_BYTES,
+        read_bytes: Some(OVERVIEW_READ_BYTES),
         decode_rows: 1,
     };
     let tile_opts = |_: usize, _: &OverviewPart| DecodeOptions {
